@@ -1,0 +1,1 @@
+"""The `lubrig` command line."""

@@ -1,0 +1,1 @@
+"""ROS-free numerics core: friction law, band profiles, integrator, stability, wavelets."""

@@ -1,0 +1,175 @@
+"""Typed, validated parameter sets of the rig and of the friction law (SI units throughout).
+
+Units are stated here once: lengths in m, times in s, velocities in m/s, forces in N,
+stresses and moduli in Pa, viscosities in Pa·s, masses in kg, frequencies in Hz.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any, Literal
+
+Convention = Literal["physical", "paper"]
+CONVENTIONS: tuple[str, ...] = ("physical", "paper")
+
+#: Contact area that reproduces every friction coefficient the study reports (default).
+CONTACT_AREA_CORRECTED = 2.83e-10
+#: Contact area as printed in the study; gives friction coefficients exactly 10x smaller.
+CONTACT_AREA_PRINTED = 28.3e-12
+CONTACT_AREA_CHOICES: dict[str, float] = {
+    "corrected": CONTACT_AREA_CORRECTED,
+    "printed": CONTACT_AREA_PRINTED,
+}
+
+
+class ParameterError(ValueError):
+    """A parameter value outside what the model accepts; the message names value and valid range."""
+
+
+def _check_finite(name: str, value: Any) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name}={value!r} is not a number; expected a finite float") from None
+    if not math.isfinite(number):
+        raise ParameterError(f"{name}={value!r} is not finite; expected a finite float")
+    return number
+
+
+def _check_positive(name: str, value: Any) -> float:
+    number = _check_finite(name, value)
+    if number <= 0.0:
+        raise ParameterError(f"{name}={value!r} must be > 0")
+    return number
+
+
+def _check_range(name: str, value: Any, low: float, high: float) -> float:
+    number = _check_finite(name, value)
+    if not low <= number <= high:
+        raise ParameterError(f"{name}={value!r} is outside the valid range [{low}, {high}]")
+    return number
+
+
+@dataclass(frozen=True)
+class FrictionParameters:
+    """Junction-kinetics friction law of the confined interface (diamine in PAO, N = 1 mN)."""
+
+    shear_modulus: float = 3.9e6  # G, Pa
+    interface_thickness: float = 4.25e-9  # D, m
+    interpenetration_thickness: float = 1e-10  # d, m
+    yield_distance: float = 1.6e-9  # l*, m
+    thermal_break_time: float = 1000.0  # τ0, s
+    reference_activation_time: float = 18.0  # τ_ref, s
+    reference_velocity: float = 1e-10  # v_ref, m/s
+    activation_exponent: float = -0.41  # k1, in [-1, 0]
+    reference_viscosity: float = 900.0  # η_ref, Pa·s
+    shear_thinning_exponent: float = -0.62  # k2, in [-1, 0]
+    contact_area: float = CONTACT_AREA_CORRECTED  # A, m² (see docs/model.md on the printed value)
+    normal_force: float = 1e-3  # N, N
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("activation_exponent", "shear_thinning_exponent"):
+                _check_range(f.name, value, -1.0, 0.0)
+            else:
+                _check_positive(f.name, value)
+            object.__setattr__(self, f.name, float(value))
+
+    @property
+    def critical_velocity(self) -> float:
+        """v0 = l*/τ0, the velocity where junction stretching and thermal breaking balance."""
+        return self.yield_distance / self.thermal_break_time
+
+    def with_contact_area(self, choice: str | float) -> FrictionParameters:
+        """Copy with the contact area set by name ('corrected', 'printed') or value in m²."""
+        if isinstance(choice, str):
+            if choice not in CONTACT_AREA_CHOICES:
+                try:
+                    return replace(self, contact_area=float(choice))
+                except ValueError:
+                    raise ParameterError(
+                        f"contact_area={choice!r} is not valid; expected one of "
+                        f"{sorted(CONTACT_AREA_CHOICES)} or a positive area in m²"
+                    ) from None
+            return replace(self, contact_area=CONTACT_AREA_CHOICES[choice])
+        return replace(self, contact_area=choice)
+
+    def as_array(self) -> tuple[float, ...]:
+        """Parameters in the fixed order the compiled kernels expect."""
+        return tuple(getattr(self, f.name) for f in fields(self))
+
+
+@dataclass(frozen=True)
+class RigParameters:
+    """Mass–spring–damper held against the band, plus the relative-velocity convention."""
+
+    mass: float = 0.1  # m, kg
+    natural_frequency: float = 10.0  # f0, Hz
+    damping_ratio: float = 0.01  # ζ, dimensionless
+    convention: str = "physical"  # 'physical' (v_band − ẋ) or 'paper' (v_band − ẋ/ω0)
+    friction: FrictionParameters = field(default_factory=FrictionParameters)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "mass", _check_positive("mass", self.mass))
+        object.__setattr__(
+            self, "natural_frequency", _check_positive("natural_frequency", self.natural_frequency)
+        )
+        damping = _check_finite("damping_ratio", self.damping_ratio)
+        if damping < 0.0:
+            raise ParameterError(f"damping_ratio={self.damping_ratio!r} must be >= 0")
+        object.__setattr__(self, "damping_ratio", damping)
+        if self.convention not in CONVENTIONS:
+            raise ParameterError(
+                f"convention={self.convention!r} is not valid; expected one of {list(CONVENTIONS)}"
+            )
+        if not isinstance(self.friction, FrictionParameters):
+            raise ParameterError("friction must be a FrictionParameters instance")
+
+    @property
+    def angular_frequency(self) -> float:
+        """ω0 = 2π f0 in rad/s."""
+        return 2.0 * math.pi * self.natural_frequency
+
+    @property
+    def stiffness(self) -> float:
+        """k = m ω0² in N/m."""
+        return self.mass * self.angular_frequency**2
+
+    @property
+    def damping(self) -> float:
+        """c = 2 ζ sqrt(k m) in N·s/m."""
+        return 2.0 * self.damping_ratio * math.sqrt(self.stiffness * self.mass)
+
+    @property
+    def velocity_factor(self) -> float:
+        """γ in v_rel = v_band − γ ẋ: 1 (physical) or 1/ω0 in s (paper)."""
+        return 1.0 if self.convention == "physical" else 1.0 / self.angular_frequency
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dictionary (YAML/JSON friendly), friction nested."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> RigParameters:
+        """Build from a mapping such as a YAML 'rig' section; unknown keys are an error."""
+        data = dict(data)
+        friction_data = dict(data.pop("friction", {}) or {})
+        known_rig = {f.name for f in fields(cls)} - {"friction"}
+        known_friction = {f.name for f in fields(FrictionParameters)}
+        unknown = set(data) - known_rig
+        if unknown:
+            raise ParameterError(
+                f"unknown rig parameter(s) {sorted(unknown)}; valid: {sorted(known_rig)}"
+            )
+        area = friction_data.pop("contact_area", None)
+        unknown = set(friction_data) - known_friction
+        if unknown:
+            raise ParameterError(
+                f"unknown friction parameter(s) {sorted(unknown)}; valid: {sorted(known_friction)}"
+            )
+        friction = FrictionParameters(**friction_data)
+        if area is not None:
+            friction = friction.with_contact_area(area)
+        return cls(**data, friction=friction)

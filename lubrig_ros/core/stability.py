@@ -1,0 +1,134 @@
+"""Linear stability of the steady sliding equilibrium (Routh–Hurwitz on the linearized rig).
+
+Linearizing m ẍ + c ẋ + k x = N μ(v_band − γ ẋ) about x0 = N μ(v_band)/k gives, in hyper-time,
+x̃'' + (2ζ + ω0 γ N μ'(v_band)/k) x̃' + x̃ = 0 with γ = 1 (physical) or 1/ω0 (paper): the
+equilibrium is stable exactly when that effective damping is positive.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .friction import friction_coefficient, friction_minimum, friction_peak, friction_slope
+from .params import RigParameters
+
+ZONE_NAMES = {
+    1: "zone 1 (rising friction, junction stretching: stable)",
+    2: "zone 2 (falling friction: unstable unless damped enough)",
+    3: "zone 3 (rising friction, viscous: stable)",
+}
+
+
+@dataclass(frozen=True)
+class LinearStability:
+    """Linear verdict at one band velocity."""
+
+    band_velocity: float  # m/s
+    zone: int  # 1, 2 or 3
+    friction_coefficient: float
+    friction_slope: float  # dμ/dv, s/m
+    equilibrium_displacement: float  # x0, m
+    effective_damping: float  # 2ζ + ω0 γ N μ'/k (hyper-time damping coefficient)
+    critical_damping_ratio: float  # ζ_crit ≥ 0: stable iff ζ > ζ_crit
+    stable: bool
+
+
+def _coupling(rig: RigParameters) -> float:
+    """ω0 γ N / k: multiplies μ' in the effective damping."""
+    return rig.angular_frequency * rig.velocity_factor * rig.friction.normal_force / rig.stiffness
+
+
+def equilibrium_displacement(band_velocity: np.typing.ArrayLike, rig: RigParameters) -> np.ndarray:
+    """Static equilibrium x0 = μ(v_band) N / k in m."""
+    mu = friction_coefficient(band_velocity, rig.friction)
+    return mu * rig.friction.normal_force / rig.stiffness
+
+
+def friction_zone(band_velocity: np.typing.ArrayLike, rig: RigParameters) -> np.ndarray:
+    """Zone 1, 2 or 3 of |v_band| relative to the peak and minimum of μ (integer array)."""
+    v = np.abs(np.asarray(band_velocity, dtype=float))
+    peak = friction_peak(rig.friction).velocity
+    minimum = friction_minimum(rig.friction).velocity
+    return np.where(v < peak, 1, np.where(v < minimum, 2, 3))
+
+
+def critical_damping_ratio(
+    band_velocity: np.typing.ArrayLike, rig: RigParameters
+) -> np.ndarray:
+    """ζ_crit(v_band) = max(0, −ω0 γ N μ'/(2k)): damping above it stabilizes the equilibrium."""
+    slope = friction_slope(band_velocity, rig.friction)
+    return np.maximum(0.0, -_coupling(rig) * slope / 2.0)
+
+
+def linear_stability(band_velocity: float, rig: RigParameters) -> LinearStability:
+    """Routh–Hurwitz verdict for a constant band velocity (m/s)."""
+    v = float(band_velocity)
+    if not np.isfinite(v) or v <= 0.0:
+        raise ValueError(f"band_velocity={band_velocity!r} must be a finite velocity > 0 m/s")
+    mu = float(friction_coefficient(v, rig.friction))
+    slope = float(friction_slope(v, rig.friction))
+    effective = 2.0 * rig.damping_ratio + _coupling(rig) * slope
+    return LinearStability(
+        band_velocity=v,
+        zone=int(friction_zone(v, rig)),
+        friction_coefficient=mu,
+        friction_slope=slope,
+        equilibrium_displacement=mu * rig.friction.normal_force / rig.stiffness,
+        effective_damping=effective,
+        critical_damping_ratio=max(0.0, -_coupling(rig) * slope / 2.0),
+        stable=bool(effective > 0.0),
+    )
+
+
+def unstable_intervals(
+    damping_ratio: float,
+    rig: RigParameters,
+    v_min: float = 1e-15,
+    v_max: float = 1e-2,
+    points_per_decade: int = 400,
+) -> list[tuple[float, float]]:
+    """Band-velocity intervals [lo, hi] (m/s) where the equilibrium is unstable at this ζ.
+
+    Edges are located on a log grid and then refined by bisection on the effective damping.
+    """
+    if not np.isfinite(damping_ratio) or damping_ratio < 0:
+        raise ValueError(f"damping_ratio={damping_ratio!r} must be a finite number >= 0")
+    rig = replace(rig, damping_ratio=damping_ratio)
+    decades = np.log10(v_max) - np.log10(v_min)
+    v = np.logspace(np.log10(v_min), np.log10(v_max), int(decades * points_per_decade) + 1)
+    effective = 2.0 * damping_ratio + _coupling(rig) * friction_slope(v, rig.friction)
+    unstable = effective <= 0.0
+
+    def refine(lo: float, hi: float) -> float:
+        f_lo = 2.0 * damping_ratio + _coupling(rig) * float(friction_slope(lo, rig.friction))
+        for _ in range(80):
+            mid = np.sqrt(lo * hi)
+            f_mid = 2.0 * damping_ratio + _coupling(rig) * float(friction_slope(mid, rig.friction))
+            if (f_mid <= 0.0) == (f_lo <= 0.0):
+                lo, f_lo = mid, f_mid
+            else:
+                hi = mid
+        return float(np.sqrt(lo * hi))
+
+    intervals: list[tuple[float, float]] = []
+    start: float | None = float(v[0]) if unstable[0] else None
+    for i in range(1, v.size):
+        if unstable[i] and not unstable[i - 1]:
+            start = refine(v[i - 1], v[i])
+        elif not unstable[i] and unstable[i - 1]:
+            intervals.append((start if start is not None else float(v[0]), refine(v[i - 1], v[i])))
+            start = None
+    if start is not None:
+        intervals.append((start, float(v[-1])))
+    return intervals
+
+
+def stability_map(
+    band_velocities: np.ndarray, damping_ratios: np.ndarray, rig: RigParameters
+) -> np.ndarray:
+    """Boolean grid [ζ, v_band]: True where the equilibrium is linearly stable."""
+    slope = friction_slope(np.asarray(band_velocities, dtype=float), rig.friction)
+    zeta = np.asarray(damping_ratios, dtype=float)[:, None]
+    return 2.0 * zeta + _coupling(rig) * slope[None, :] > 0.0
