@@ -13,6 +13,12 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
     "stability",
     "simulate",
     "analyze",
+    "rig",
+    "bag",
+    "replay",
+    "report",
+    "paper",
+    "sweep",
 )
 
 
