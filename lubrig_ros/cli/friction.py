@@ -1,0 +1,123 @@
+"""`lubrig friction`: landmarks of the friction law, μ and dμ/dv at chosen velocities, curve files.
+
+Values given on the command line are parsed here rather than by argparse so that every bad value
+gives one error line naming it (argparse would add a usage block).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+from ..core.friction import friction_coefficient, friction_minimum, friction_peak, friction_slope
+from ..core.params import FrictionParameters
+
+# argparse (Python < 3.13) takes "-1e-7" for an option; accept any signed float literal as a value.
+NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
+
+
+def parse_finite(option: str, text: str, what: str) -> float:
+    """Parse one command-line number; non-numbers and NaN/inf raise ValueError naming the value."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"{option} {text!r} is not a number; expected {what}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{option} {text!r} is not finite; expected {what}")
+    return value
+
+
+def friction_parameters(choice: str) -> FrictionParameters:
+    """Default friction parameters with the contact area named by --contact-area."""
+    try:
+        return FrictionParameters().with_contact_area(choice)
+    except ValueError as exc:
+        raise ValueError(f"--contact-area {choice!r}: {exc}") from None
+
+
+def _json_number(value: float) -> float | None:
+    """JSON has no infinity: the unbounded slope at v = 0 is written as null."""
+    return float(value) if math.isfinite(value) else None
+
+
+def friction_report(params: FrictionParameters, velocities: list[float]) -> dict[str, Any]:
+    """Landmarks and optional point values as a JSON-ready dictionary."""
+    peak, minimum = friction_peak(params), friction_minimum(params)
+    report: dict[str, Any] = {
+        "contact_area_m2": params.contact_area,
+        "peak": {"velocity": peak.velocity, "mu": peak.mu},
+        "minimum": {"velocity": minimum.velocity, "mu": minimum.mu},
+    }
+    if velocities:
+        mu = friction_coefficient(velocities, params)
+        slope = friction_slope(velocities, params)
+        report["points"] = [
+            {"velocity": v, "mu": float(m), "dmu_dv": _json_number(float(s))}
+            for v, m, s in zip(velocities, mu, slope, strict=True)
+        ]
+    return report
+
+
+def _print_table(report: dict[str, Any]) -> None:
+    print(f"contact area A = {report['contact_area_m2']:.4g} m²")
+    print(f"{'':10s} {'velocity (m/s)':>15s} {'mu':>12s} {'dmu/dv (s/m)':>14s}")
+    for name in ("peak", "minimum"):
+        point = report[name]
+        print(f"{name:10s} {point['velocity']:15.4e} {point['mu']:12.5e} {0.0:14.4e}")
+    for point in report.get("points", []):
+        slope = point["dmu_dv"]
+        slope_text = f"{slope:14.4e}" if slope is not None else f"{'inf':>14s}"
+        print(f"{'at':10s} {point['velocity']:15.4e} {point['mu']:12.5e} {slope_text}")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute `lubrig friction`."""
+    velocities = [
+        parse_finite("--at", text, "a finite sliding velocity in m/s (negative allowed: μ is odd)")
+        for text in (args.at or [])
+    ]
+    params = friction_parameters(args.contact_area)
+    report = friction_report(params, velocities)
+    if args.out is not None:
+        from ..figures.curves import plot_friction_curve, save_figure, write_friction_csv
+
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        csv_path = write_friction_csv(out / "friction_curve.csv", params)
+        png_path = save_figure(plot_friction_curve(params), out / "friction_curve.png")
+        report["files"] = [str(csv_path), str(png_path)]
+    if args.json:
+        print(json.dumps(report, indent=2, allow_nan=False))
+    else:
+        _print_table(report)
+        for path in report.get("files", []):
+            print(f"wrote {path}")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `friction` subcommand."""
+    parser = subparsers.add_parser(
+        "friction",
+        help="friction law landmarks, μ and dμ/dv at given velocities, curve CSV and figure",
+        description="Peak and minimum of μ(v); μ and dμ/dv at --at velocities; --out writes "
+        "friction_curve.csv (1e-15…1e-2 m/s) and friction_curve.png.",
+    )
+    parser._negative_number_matcher = NEGATIVE_NUMBER  # let "--at -1e-7" through
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--at", nargs="+", metavar="V", help="sliding velocities in m/s to evaluate μ and dμ/dv at"
+    )
+    parser.add_argument(
+        "--contact-area",
+        default="corrected",
+        metavar="corrected|printed|VALUE",
+        help="contact area: 'corrected' 2.83e-10 m² (default, reproduces the study's μ), "
+        "'printed' 28.3e-12 m² (as printed in the study, μ 10x smaller) or a value in m²",
+    )
+    parser.add_argument("--out", metavar="DIR", help="write friction_curve.csv and .png here")
+    parser.set_defaults(func=run)

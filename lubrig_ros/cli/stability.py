@@ -1,0 +1,127 @@
+"""`lubrig stability`: band-velocity intervals of linear instability per damping ratio, and the map.
+
+Numbers are validated here (not by argparse) so that every bad value gives one error line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from ..core.friction import friction_minimum, friction_peak
+from ..core.params import CONVENTIONS, RigParameters
+from ..core.stability import critical_damping_ratio, unstable_intervals
+from .friction import NEGATIVE_NUMBER, friction_parameters, parse_finite
+
+
+def parse_zeta(text: str) -> float:
+    """One damping ratio from the command line: finite and >= 0."""
+    value = parse_finite("--zeta", text, "a finite damping ratio >= 0")
+    if value < 0.0:
+        raise ValueError(f"--zeta {text!r} is negative; expected a finite damping ratio >= 0")
+    return value
+
+
+def rig_parameters(convention: str, contact_area: str) -> RigParameters:
+    """Default rig with the chosen relative-velocity convention and contact area."""
+    if convention not in CONVENTIONS:
+        raise ValueError(
+            f"--convention {convention!r} is not valid; expected one of {'|'.join(CONVENTIONS)}"
+        )
+    return RigParameters(convention=convention, friction=friction_parameters(contact_area))
+
+
+def stability_report(rig: RigParameters, zetas: list[float]) -> dict[str, Any]:
+    """Unstable band-velocity intervals (m/s) for each ζ, with the zone edges, JSON-ready."""
+    peak, minimum = friction_peak(rig.friction), friction_minimum(rig.friction)
+    return {
+        "convention": rig.convention,
+        "zone_edges": {"peak_velocity": peak.velocity, "minimum_velocity": minimum.velocity},
+        "results": [
+            {
+                "zeta": zeta,
+                "unstable_intervals": [[lo, hi] for lo, hi in unstable_intervals(zeta, rig)],
+            }
+            for zeta in zetas
+        ],
+    }
+
+
+def _print_table(report: dict[str, Any]) -> None:
+    edges = report["zone_edges"]
+    print(
+        f"convention: {report['convention']}; zone 2 spans "
+        f"{edges['peak_velocity']:.4g} … {edges['minimum_velocity']:.4g} m/s"
+    )
+    for result in report["results"]:
+        intervals = result["unstable_intervals"]
+        text = ", ".join(f"[{lo:.4g}, {hi:.4g}]" for lo, hi in intervals) or "none (stable)"
+        print(f"zeta = {result['zeta']:<10g} unstable band velocities (m/s): {text}")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Execute `lubrig stability`."""
+    zetas = [parse_zeta(text) for text in args.zeta]
+    rig = rig_parameters(args.convention, args.contact_area)
+    report = stability_report(rig, zetas)
+    if args.at is not None:
+        v = parse_finite("--at", args.at, "a band velocity > 0 in m/s")
+        if v <= 0.0:
+            raise ValueError(f"--at {args.at!r} must be > 0; expected a band velocity in m/s")
+        report["critical_damping_ratio"] = {
+            "velocity": v,
+            "zeta_crit": float(critical_damping_ratio(v, rig)),
+        }
+    if args.out is not None:
+        from ..figures.curves import plot_stability_map, save_figure
+
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        report["files"] = [str(save_figure(plot_stability_map(rig), out / "stability_map.png"))]
+    if args.json:
+        print(json.dumps(report, indent=2, allow_nan=False))
+    else:
+        _print_table(report)
+        if "critical_damping_ratio" in report:
+            crit = report["critical_damping_ratio"]
+            print(f"zeta_crit({crit['velocity']:.4g} m/s) = {crit['zeta_crit']:.6g}")
+        for path in report.get("files", []):
+            print(f"wrote {path}")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `stability` subcommand."""
+    parser = subparsers.add_parser(
+        "stability",
+        help="linear stability of steady sliding: unstable band velocities per damping ratio",
+        description="Routh–Hurwitz on the linearized rig: unstable band-velocity intervals for "
+        "each --zeta; --out writes stability_map.png.",
+    )
+    parser._negative_number_matcher = NEGATIVE_NUMBER  # so "--zeta -0.1" reaches validation
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--zeta",
+        nargs="+",
+        default=["0.01"],
+        metavar="Z",
+        help="damping ratios >= 0 (default: the rig's 0.01)",
+    )
+    parser.add_argument(
+        "--convention",
+        default="physical",
+        metavar="physical|paper",
+        help="relative velocity v_band − ẋ (physical, default) or v_band − ẋ/ω0 (paper: "
+        "reproduces the study's figures)",
+    )
+    parser.add_argument(
+        "--contact-area",
+        default="corrected",
+        metavar="corrected|printed|VALUE",
+        help="contact area: corrected 2.83e-10 m² (default), printed 28.3e-12 m², or m²",
+    )
+    parser.add_argument("--at", metavar="V", help="also report ζ_crit at this band velocity (m/s)")
+    parser.add_argument("--out", metavar="DIR", help="write stability_map.png here")
+    parser.set_defaults(func=run)

@@ -1,0 +1,1 @@
+"""Report figures of the friction law, the stability map and the simulated responses."""
