@@ -99,7 +99,7 @@ def plot_friction_curve(
     )
     ax.set_xscale("log")
     ax.set_xlim(v_min, v_max)
-    ax.set_ylim(0.0, 1.3 * peak.mu)
+    ax.set_ylim(0.0, 1.15 * max(peak.mu, float(table[:, 1].max())))  # whole curve, room for labels
     ax.set_xlabel("sliding velocity v (m/s)")
     ax.set_ylabel("friction coefficient μ (–)")
     ax.set_title(f"Friction law of the lubricated interface (A = {params.contact_area:.3g} m²)")
