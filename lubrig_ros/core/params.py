@@ -134,12 +134,12 @@ class RigParameters:
 
     @property
     def stiffness(self) -> float:
-        """k = m ω0² in N/m."""
+        """K = m ω0² in N/m."""
         return self.mass * self.angular_frequency**2
 
     @property
     def damping(self) -> float:
-        """c = 2 ζ sqrt(k m) in N·s/m."""
+        """C = 2 ζ sqrt(k m) in N·s/m."""
         return 2.0 * self.damping_ratio * math.sqrt(self.stiffness * self.mass)
 
     @property

@@ -1,0 +1,166 @@
+"""Run configurations: YAML files in config/ merged over the study's rig (config/rig.yaml).
+
+The same files drive the `lubrig` command line and the ROS nodes.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .. import __version__
+from .params import ParameterError, RigParameters, _check_positive
+from .profiles import BandProfile, profile_from_dict, profile_to_dict
+
+SECTIONS = ("name", "description", "rig", "band", "simulation")
+SIMULATION_KEYS = ("duration", "sample_rate", "rtol", "initial_perturbation")
+CASE_NUMBERS = range(1, 11)
+
+
+def config_dir() -> Path:
+    """Where the shipped YAML presets live (source tree, or the installed share directory)."""
+    here = Path(__file__).resolve().parents[2] / "config"
+    if (here / "rig.yaml").is_file():
+        return here
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        return Path(get_package_share_directory("lubrig_ros")) / "config"
+    except Exception:
+        import sys
+
+        return Path(sys.prefix) / "share" / "lubrig_ros" / "config"
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Everything that defines a run: rig, band profile and integration settings."""
+
+    name: str
+    description: str
+    rig: RigParameters
+    band: BandProfile
+    duration: float  # s
+    sample_rate: float  # Hz
+    rtol: float
+    initial_perturbation: float
+
+    def __post_init__(self) -> None:
+        _check_positive("duration", self.duration)
+        _check_positive("sample_rate", self.sample_rate)
+        rtol = _check_positive("rtol", self.rtol)
+        if not 1e-13 <= rtol <= 1e-2:
+            raise ParameterError(f"rtol={self.rtol!r} is outside the valid range [1e-13, 1e-2]")
+        if not math.isfinite(float(self.initial_perturbation)):
+            raise ParameterError(
+                f"initial_perturbation={self.initial_perturbation!r} must be finite"
+            )
+        for name in ("duration", "sample_rate", "rtol", "initial_perturbation"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+
+    @property
+    def samples(self) -> int:
+        """Number of output samples after t = 0."""
+        return round(self.duration * self.sample_rate)
+
+    def to_dict(self) -> dict[str, Any]:
+        """YAML/JSON-ready mapping that from_mapping turns back into an equal config."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "rig": self.rig.to_dict(),
+            "band": profile_to_dict(self.band),
+            "simulation": {key: getattr(self, key) for key in SIMULATION_KEYS},
+            "lubrig_ros_version": __version__,
+        }
+
+    def to_yaml(self) -> str:
+        """The full configuration as YAML text (stored with every run)."""
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+    def with_overrides(self, **changes: Any) -> RunConfig:
+        """Copy with rig fields (convention, damping_ratio, ...) or run fields replaced."""
+        rig_fields = {"mass", "natural_frequency", "damping_ratio", "convention"}
+        rig_changes = {k: v for k, v in changes.items() if k in rig_fields and v is not None}
+        run_changes = {k: v for k, v in changes.items() if k not in rig_fields and v is not None}
+        return replace(self, rig=replace(self.rig, **rig_changes), **run_changes)
+
+
+def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    merged = copy.deepcopy(base)
+    for key, value in over.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict) and key != "band":
+            merged[key] = _deep_merge(merged[key], value)
+        else:
+            merged[key] = copy.deepcopy(value)
+    return merged
+
+
+def _read_yaml(path: Path) -> dict[str, Any]:
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise ParameterError(f"config file {str(path)!r} cannot be read: {exc.strerror}") from None
+    except yaml.YAMLError as exc:
+        raise ParameterError(f"config file {str(path)!r} is not valid YAML: {exc}") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ParameterError(f"config file {str(path)!r} must hold a mapping, not {type(data).__name__}")
+    return data
+
+
+def defaults() -> dict[str, Any]:
+    """The study's rig as a mapping (config/rig.yaml)."""
+    return _read_yaml(config_dir() / "rig.yaml")
+
+
+def from_mapping(data: dict[str, Any], base_dir: Path | None = None) -> RunConfig:
+    """Build a RunConfig from a mapping merged over the defaults; unknown keys are errors."""
+    data = {k: v for k, v in data.items() if k != "lubrig_ros_version"}
+    unknown = set(data) - set(SECTIONS)
+    if unknown:
+        raise ParameterError(f"unknown config section(s) {sorted(unknown)}; valid: {list(SECTIONS)}")
+    merged = _deep_merge(defaults(), data)
+    simulation = dict(merged.get("simulation") or {})
+    unknown = set(simulation) - set(SIMULATION_KEYS)
+    if unknown:
+        raise ParameterError(
+            f"unknown simulation setting(s) {sorted(unknown)}; valid: {list(SIMULATION_KEYS)}"
+        )
+    return RunConfig(
+        name=str(merged.get("name", "run")),
+        description=str(merged.get("description", "")),
+        rig=RigParameters.from_dict(merged.get("rig") or {}),
+        band=profile_from_dict(merged.get("band") or {}, base_dir=base_dir),
+        **simulation,
+    )
+
+
+def load_config(path: str | Path) -> RunConfig:
+    """Read a run configuration file (YAML) merged over the study's rig."""
+    path = Path(path)
+    return from_mapping(_read_yaml(path), base_dir=path.parent)
+
+
+def load_case(number: int | str) -> RunConfig:
+    """One of the study's Table 1 cases (1–10), paper convention."""
+    try:
+        n = int(number)
+    except (TypeError, ValueError):
+        n = -1
+    if n not in CASE_NUMBERS:
+        raise ParameterError(
+            f"case={number!r} is not a study case; valid: {CASE_NUMBERS.start}..{CASE_NUMBERS.stop - 1}"
+        )
+    return load_config(config_dir() / "cases" / f"case{n:02d}.yaml")
+
+
+def default_config() -> RunConfig:
+    """The built-in default run (config/rig.yaml alone)."""
+    return from_mapping({})
