@@ -9,26 +9,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 from pathlib import Path
 from typing import Any
 
 from ..core.friction import friction_coefficient, friction_minimum, friction_peak, friction_slope
 from ..core.params import FrictionParameters
-
-# argparse (Python < 3.13) takes "-1e-7" for an option; accept any signed float literal as a value.
-NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
-
-
-def parse_finite(option: str, text: str, what: str) -> float:
-    """Parse one command-line number; non-numbers and NaN/inf raise ValueError naming the value."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise ValueError(f"{option} {text!r} is not a number; expected {what}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{option} {text!r} is not finite; expected {what}")
-    return value
+from .common import NEGATIVE_NUMBER, parse_finite
 
 
 def friction_parameters(choice: str) -> FrictionParameters:

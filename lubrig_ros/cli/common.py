@@ -1,0 +1,36 @@
+"""Helpers shared by the `lubrig` subcommands: number parsing that fails in one clear line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+# argparse (Python < 3.13) takes "-1e-7" for an option; accept any signed float literal as a value.
+NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
+
+
+def parse_finite(option: str, text: str, what: str) -> float:
+    """Parse one command-line number; non-numbers and NaN/inf raise ValueError naming the value."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"{option} {text!r} is not a number; expected {what}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{option} {text!r} is not finite; expected {what}")
+    return value
+
+
+def allow_negative_numbers(parser: argparse.ArgumentParser) -> None:
+    """Let values such as "-1e-7" reach our own validation instead of argparse's option parsing."""
+    parser._negative_number_matcher = NEGATIVE_NUMBER
+
+
+def write_json(path: Path, data: dict[str, Any]) -> None:
+    """Write JSON atomically (temporary file, then rename) so a reader never sees half a file."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2) + "\n")
+    tmp.replace(path)
