@@ -5,7 +5,8 @@ update, gives exactly the Torrence–Compo transform of the current window (same
 those samples):
 
 * the newest power columns by direct dot products with precomputed wavelet kernels (rows of the
-  circular kernel h = IFFT(ψ̂) of the padded window), cost J × window per new column;
+  circular kernel h = IFFT(ψ̂) of the padded window), cost J × window per new column, when no
+  full analysis is due (otherwise they are read from it);
 * the whole-window power, dominant components and flags by one rfft + multiply + batched ifft
   with precomputed daughter FFTs, cost O(J × P log P) with P the padded window length.
 
@@ -212,7 +213,7 @@ class OnlineWaveletAnalyzer:
             result = build_result(xc, raw, self.scales, self.dt, self.dj, t_start)
         if variance <= 0.0:
             columns = np.zeros((self.scales.size, k))
-        elif k > DIRECT_COLUMNS_MAX and result is not None:
+        elif result is not None:
             columns = result.power[:, -k:]
         else:
             columns = self._direct_columns(x, mean, k) / variance

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import scipy.fft as sfft
 from scipy.signal import find_peaks
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 #: Morlet wave number (nondimensional frequency) used by the study and by Torrence & Compo.
 OMEGA0 = 6.0
@@ -179,11 +179,11 @@ def significance_level(
         raise ValueError(f"level={level!r} is not valid; expected a confidence level in (0, 1)")
     background = red_noise_spectrum(periods, dt, lag1)
     if n_average is None:
-        return background * chi2.ppf(level, 2) / 2.0
+        return background * chdtri(2.0, 1.0 - level) / 2.0
     scales = np.asarray(periods, dtype=float) / fourier_factor()
     n_avg = np.maximum(np.asarray(n_average, dtype=float), 1.0)
     dof = 2.0 * np.sqrt(1.0 + (n_avg * dt / (GAMMA_TIME * scales)) ** 2)
-    return background * chi2.ppf(level, dof) / dof
+    return background * chdtri(dof, 1.0 - level) / dof
 
 
 def cone_of_influence(n: int, dt: float) -> np.ndarray:
