@@ -1,0 +1,157 @@
+"""One sweep point: a full core simulation, its summary, wavelet components and linear verdict.
+
+run_point is a plain top-level function of a picklable Point, so it runs unchanged in this process,
+in a local Dask worker process or on a remote Dask worker. It never raises: a failure becomes a
+record with status "error" and the error text, so one bad point does not stop the sweep.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import socket
+import time
+import traceback
+from typing import Any
+
+from ..core.presets import RunConfig, from_mapping
+from ..core.run import simulate, summarize
+from ..core.stability import linear_stability
+from .spec import Point
+
+#: summarize() keys copied into the table unchanged (so a sweep point equals a direct run exactly).
+SUMMARY_KEYS = (
+    "x_peak_to_peak",
+    "mu_min",
+    "mu_max",
+    "stick_fraction",
+    "stick_threshold_m_s",
+    "band_fundamental_hz",
+    "natural_frequency_hz",
+    "samples",
+    "convention",
+    "dominant_frequencies_hz",
+    "spectral_amplitudes",
+)
+#: Wavelet components kept per point.
+WAVELET_COMPONENTS = 3
+
+
+def wavelet_columns(config: RunConfig, displacement: Any) -> dict[str, Any]:
+    """Wavelet dominant components of the stationary half of the displacement.
+
+    Seam: uses lubrig_ros.core.wavelet.dominant_frequencies when it is importable; without it the
+    wavelet columns are null and the spectral (FFT) dominant frequency of summarize() remains.
+    """
+    empty: dict[str, Any] = {
+        "wavelet_frequency_hz": None,
+        "wavelet_power": None,
+        "wavelet_label": None,
+        "wavelet_harmonic": None,
+        "wavelet_frequencies_hz": [],
+        "wavelet_error": None,
+    }
+    try:
+        from ..core.wavelet import dominant_frequencies
+    except ImportError as exc:  # pragma: no cover - the module exists in this tree
+        return {**empty, "wavelet_error": f"wavelet module unavailable: {exc}"}
+    try:
+        components = dominant_frequencies(
+            displacement,
+            1.0 / config.sample_rate,
+            fundamental_hz=config.band.fundamental_hz,
+            n=WAVELET_COMPONENTS,
+            start=config.duration / 2.0,
+        )
+    except ValueError as exc:  # record too short for the transform: keep the point, say why
+        return {**empty, "wavelet_error": str(exc)}
+    if not components:
+        return empty
+    first = components[0]
+    return {
+        "wavelet_frequency_hz": first.frequency_hz,
+        "wavelet_power": first.power,
+        "wavelet_label": first.label,
+        "wavelet_harmonic": first.harmonic,
+        "wavelet_frequencies_hz": [c.frequency_hz for c in components],
+        "wavelet_error": None,
+    }
+
+
+def linear_columns(config: RunConfig) -> dict[str, Any]:
+    """Routh–Hurwitz verdict at the band's lowest steady velocity (cycle: V1, and V2 must agree).
+
+    Constant band: its velocity. Cycle: stable only if both plateaus are; ζ_crit is the larger.
+    Sine: its mean velocity. Table: the lowest table velocity.
+    """
+    band = config.band
+    if band.kind == "constant":
+        velocities = [band.velocity]
+    elif band.kind == "cycle":
+        velocities = [band.low_velocity, band.high_velocity]
+    elif band.kind == "sine":
+        velocities = [band.mean_velocity]
+    else:
+        velocities = [min(band.velocities)]
+    verdicts = [linear_stability(v, config.rig) for v in velocities]
+    worst = max(verdicts, key=lambda s: (not s.stable, s.critical_damping_ratio))
+    return {
+        "linear_velocity_m_s": worst.band_velocity,
+        "linear_zone": worst.zone,
+        "linear_stable": all(s.stable for s in verdicts),
+        "critical_damping_ratio": max(s.critical_damping_ratio for s in verdicts),
+    }
+
+
+def run_point(point: Point) -> dict[str, Any]:
+    """Simulate and summarize one point; return its record (never raises)."""
+    started = time.time()
+    clock = time.perf_counter()
+    record: dict[str, Any] = {
+        "point_id": point.point_id,
+        "index": point.index,
+        "values": point.values,
+        "status": "ok",
+        "error": None,
+        "worker": f"{socket.gethostname()}:{os.getpid()}",
+        "started_at": started,
+    }
+    try:
+        config = from_mapping(point.config)
+        trajectory = simulate(config)
+        simulated = time.perf_counter()
+        summary = summarize(trajectory, config)
+        record.update({key: summary[key] for key in SUMMARY_KEYS})
+        peaks = summary["dominant_frequencies_hz"]
+        record["dominant_frequency_hz"] = peaks[0] if peaks else None
+        record["mu_range"] = summary["mu_max"] - summary["mu_min"]
+        record.update(wavelet_columns(config, trajectory.displacement) if point.wavelet else {})
+        frequency = record.get("wavelet_frequency_hz") or record["dominant_frequency_hz"]
+        fundamental = summary["band_fundamental_hz"]
+        record["frequency_ratio"] = (
+            frequency / fundamental if frequency is not None and fundamental else None
+        )
+        record.update(linear_columns(config))
+        record["simulate_seconds"] = simulated - clock
+    except Exception as exc:  # a failed point is data, not a crash of the sweep
+        record["status"] = "error"
+        record["error"] = f"{type(exc).__name__}: {exc}"
+        record["traceback"] = traceback.format_exc(limit=5)
+    record["point_seconds"] = time.perf_counter() - clock
+    record["finished_at"] = time.time()
+    for key, value in list(record.items()):
+        if isinstance(value, float) and not math.isfinite(value):
+            record[key] = None  # JSON and Parquet agree on null, not on NaN/inf text
+    return record
+
+
+def warm_up() -> float:
+    """Load (or compile) the numba kernels in this process; return the seconds it took.
+
+    Each Dask worker process pays this once; running it before the sweep keeps it out of the
+    first point's time and out of the progress estimate.
+    """
+    clock = time.perf_counter()
+    config = from_mapping({"simulation": {"duration": 0.02}})
+    summarize(simulate(config), config)
+    return time.perf_counter() - clock
