@@ -1,0 +1,217 @@
+"""Shared pieces of the lubrig_ros nodes: topic names, QoS profiles, parameter and run helpers.
+
+The topic contract lives in docs/topics.md; every name here is relative to the `topic_namespace`
+parameter (default /lubrig), except /clock and /diagnostics.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
+
+import numpy as np
+import rclpy
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from ..core.params import ParameterError
+from ..core.presets import RunConfig, default_config, load_case, load_config
+
+DEFAULT_NAMESPACE = "/lubrig"
+
+# Topic names relative to the namespace.
+BAND_VELOCITY = "band_velocity"
+DISPLACEMENT = "displacement"
+VELOCITY = "velocity"
+FRICTION_COEFFICIENT = "friction_coefficient"
+STATE = "state"
+RUN_CONFIG = "run_config"
+RUN_COMPLETE = "run_complete"
+DOMINANT_FREQUENCY = "dominant_frequency"
+WAVELET_POWER = "wavelet_power"
+WAVELET_IMAGE = "wavelet_image"
+LINEAR_ZONE = "linear_zone"
+CRITICAL_DAMPING_RATIO = "critical_damping_ratio"
+OSCILLATION_GROWING = "oscillation_growing"
+RESET_SERVICE = "plant/reset"
+PAUSE_SERVICE = "plant/pause"
+CLOCK = "/clock"
+DIAGNOSTICS = "/diagnostics"
+
+MODES = ("sim", "realtime", "rig_in_loop")
+#: Largest |band velocity| the plant accepts from the band topic, m/s (rig in the loop).
+BAND_VELOCITY_LIMIT = 1e-2
+
+#: Sample streams (band, plant outputs, /clock): reliable, deep queue, volatile.
+STREAM_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+#: Analysis outputs and diagnostics: reliable, keep_last 10.
+ANALYSIS_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+#: Latched once-per-run messages (run configuration, run complete).
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+
+def topic(namespace: str, name: str) -> str:
+    """Absolute topic name under the namespace (names starting with '/' are kept)."""
+    if name.startswith("/"):
+        return name
+    return f"{namespace.rstrip('/')}/{name}" if namespace.strip("/") else f"/{name}"
+
+
+def check_namespace(value: str) -> str:
+    """Validate a topic namespace such as /lubrig."""
+    if not value.startswith("/") or any(
+        not (part and (part[0].isalpha() or part[0] == "_") and part.replace("_", "a").isalnum())
+        for part in value.strip("/").split("/")
+        if value.strip("/")
+    ):
+        raise ParameterError(
+            f"topic_namespace={value!r} is not valid; expected an absolute ROS name such as '/lubrig'"
+        )
+    return value
+
+
+def check_mode(value: str) -> str:
+    """Validate the mode parameter."""
+    if value not in MODES:
+        raise ParameterError(f"mode={value!r} is not valid; expected one of {list(MODES)}")
+    return value
+
+
+def descriptor(
+    text: str,
+    *,
+    read_only: bool = False,
+    low: float | None = None,
+    high: float | None = None,
+    dynamic_typing: bool = False,
+) -> ParameterDescriptor:
+    """Parameter descriptor with a description and optional float range."""
+    desc = ParameterDescriptor(description=text, read_only=read_only, dynamic_typing=dynamic_typing)
+    if low is not None and high is not None:
+        desc.floating_point_range = [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
+    return desc
+
+
+def declare_run_selection(node: Node) -> RunConfig:
+    """Declare `case`, `config_file` and `topic_namespace`; return the selected run configuration.
+
+    case in 1..10 loads a study case, else config_file if not empty, else the built-in default
+    (config/rig.yaml). Raises ParameterError with the offending value.
+    """
+    case = node.declare_parameter(
+        "case", 0, descriptor("study case 1..10 (0: use config_file or the default)", read_only=True)
+    ).value
+    config_file = node.declare_parameter(
+        "config_file", "", descriptor("run configuration YAML (empty: default)", read_only=True)
+    ).value
+    node.declare_parameter(
+        "topic_namespace", DEFAULT_NAMESPACE, descriptor("namespace of all topics", read_only=True)
+    )
+    check_namespace(node.get_parameter("topic_namespace").value)
+    if case:
+        return load_case(case)
+    if config_file:
+        return load_config(config_file)
+    return default_config()
+
+
+def finite(value: float) -> bool:
+    """True for a finite float."""
+    return isinstance(value, float | int) and math.isfinite(value)
+
+
+def percentiles(values: Iterable[float], qs: tuple[float, ...] = (50.0, 99.0)) -> list[float]:
+    """Percentiles of values (NaN-free; 0.0 each when empty)."""
+    arr = np.fromiter(values, dtype=float)
+    if arr.size == 0:
+        return [0.0 for _ in qs]
+    return [float(v) for v in np.percentile(arr, qs)]
+
+
+class DeadlineLoop:
+    """Absolute-deadline periodic loop: sleep most of the period, spin the last few 100 µs."""
+
+    SPIN_S = 0.0003
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self.start = time.perf_counter()
+        self.ticks = 0
+
+    def deadline(self, k: int) -> float:
+        """perf_counter time of tick k."""
+        return self.start + k * self.period
+
+    def wait(self, k: int) -> float:
+        """Block until tick k is due; return how late (s) we are for it (≥ 0)."""
+        due = self.deadline(k)
+        while True:
+            now = time.perf_counter()
+            remaining = due - now
+            if remaining <= 0.0:
+                return -remaining
+            if remaining > self.SPIN_S:
+                time.sleep(remaining - self.SPIN_S)
+            else:
+                time.sleep(0)
+
+
+def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
+    """rclpy.init, build the node, spin until SIGINT/SIGTERM, destroy, shut down; exit status."""
+    rclpy.init(args=args)
+    node: Node | None = None
+    status = 0
+    try:
+        node = make_node()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except ParameterError as exc:
+        (node.get_logger() if node else rclpy.logging.get_logger("lubrig")).fatal(str(exc))
+        status = 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            close = getattr(node, "close", None)
+            if close is not None:
+                close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status
+
+
+def param_value(node: Node, name: str) -> Any:
+    """Current value of a declared parameter."""
+    return node.get_parameter(name).value
+
+
+__all__ = [
+    "ANALYSIS_QOS",
+    "LATCHED_QOS",
+    "STREAM_QOS",
+    "DeadlineLoop",
+    "ParameterType",
+    "declare_run_selection",
+    "spin_node",
+    "topic",
+]

@@ -1,0 +1,74 @@
+"""Sim mode over real DDS: deterministic x(t) equal to core.run.simulate, topics and types."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64, String
+from test_nodes_support import Probe, Procs, new_domain
+
+from lubrig_ros.core.presets import load_case
+from lubrig_ros.core.run import simulate
+from lubrig_ros.nodes import common
+
+pytestmark = pytest.mark.ros
+
+DURATION = 2.0
+
+
+def test_sim_case1_equals_core_simulate(tmp_path):
+    domain = new_domain()
+    probe = Probe(domain)
+    procs = Procs(domain, tmp_path)
+    ns = "/lubrig"
+    try:
+        probe.subscribe(f"{ns}/displacement", Float64)
+        probe.subscribe(f"{ns}/state", JointState)
+        probe.subscribe("/clock", Clock)
+        probe.subscribe(f"{ns}/run_complete", Bool, common.LATCHED_QOS)
+        probe.subscribe(f"{ns}/run_config", String, common.LATCHED_QOS)
+        procs.start("plant", case=1, duration=DURATION)
+        procs.start("belt_drive", case=1, duration=DURATION)
+        procs.start("analysis", case=1)
+        done = probe.wait_for(
+            lambda: any(m.data for m in probe.messages[f"{ns}/run_complete"]), timeout=30
+        )
+        assert done, procs.log("plant") + procs.log("belt_drive")
+        n = round(DURATION * 1000)
+        assert probe.wait_for(lambda: len(probe.messages[f"{ns}/displacement"]) >= n + 1, 5)
+        topics = probe.topics()
+        expected = {
+            f"{ns}/band_velocity": "std_msgs/msg/Float64",
+            f"{ns}/displacement": "std_msgs/msg/Float64",
+            f"{ns}/velocity": "std_msgs/msg/Float64",
+            f"{ns}/friction_coefficient": "std_msgs/msg/Float64",
+            f"{ns}/state": "sensor_msgs/msg/JointState",
+            "/clock": "rosgraph_msgs/msg/Clock",
+            f"{ns}/run_config": "std_msgs/msg/String",
+            f"{ns}/run_complete": "std_msgs/msg/Bool",
+            "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
+            f"{ns}/dominant_frequency": "std_msgs/msg/Float64",
+            f"{ns}/wavelet_power": "std_msgs/msg/Float64MultiArray",
+            f"{ns}/wavelet_image": "sensor_msgs/msg/Image",
+            f"{ns}/linear_zone": "std_msgs/msg/UInt8",
+            f"{ns}/critical_damping_ratio": "std_msgs/msg/Float64",
+            f"{ns}/oscillation_growing": "std_msgs/msg/Bool",
+        }
+        for name, type_name in expected.items():
+            assert name in topics, f"{name} missing; have {sorted(topics)}"
+            assert type_name in topics[name]
+    finally:
+        codes = procs.stop()
+        probe.close()
+    x = np.array([m.data for m in probe.messages[f"{ns}/displacement"]])
+    ref = simulate(load_case(1).with_overrides(duration=DURATION))
+    assert x.size == ref.displacement.size == n + 1
+    assert np.array_equal(x, ref.displacement)  # bit-identical, sample for sample
+    states = probe.messages[f"{ns}/state"]
+    stamps = np.array([s.header.stamp.sec + 1e-9 * s.header.stamp.nanosec for s in states])
+    assert np.allclose(stamps, ref.time, atol=1e-9)
+    assert np.array_equal([s.position[0] for s in states], ref.displacement)
+    assert "case01" in probe.messages[f"{ns}/run_config"][0].data
+    assert all(code == 0 for code in codes.values()), codes

@@ -1,0 +1,124 @@
+"""Helpers of the node tests: isolated ROS domain, node processes, an in-test probe node.
+
+(Temporary: to be replaced by test/ros_harness.py once it exists.)
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+from lubrig_ros.nodes import common
+
+BIN = Path(sys.executable).parent
+
+
+def ros_env(domain: int) -> dict[str, str]:
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+def new_domain() -> int:
+    return random.randint(100, 230)
+
+
+class Procs:
+    """Node processes started with `name --ros-args -p k:=v ...`; stopped by SIGINT then SIGTERM."""
+
+    def __init__(self, domain: int, tmp: Path) -> None:
+        self.domain, self.tmp = domain, tmp
+        self.procs: dict[str, subprocess.Popen] = {}
+
+    def start(self, name: str, **params: Any) -> subprocess.Popen:
+        args = [str(BIN / name), "--ros-args"]
+        for key, value in params.items():
+            args += ["-p", f"{key}:={value}"]
+        log = open(self.tmp / f"{name}.log", "w")  # noqa: SIM115
+        proc = subprocess.Popen(args, env=ros_env(self.domain), stdout=log, stderr=subprocess.STDOUT)
+        self.procs[name] = proc
+        return proc
+
+    def log(self, name: str) -> str:
+        return (self.tmp / f"{name}.log").read_text()
+
+    def stop(self) -> dict[str, int]:
+        for proc in self.procs.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        codes = {}
+        for name, proc in self.procs.items():
+            try:
+                codes[name] = proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.terminate()
+                codes[name] = proc.wait(timeout=5)
+        return codes
+
+
+class Probe:
+    """A node in its own context on the test's domain, spun in a background thread."""
+
+    def __init__(self, domain: int) -> None:
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain)
+        self.node = Node("probe", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.messages: dict[str, list] = defaultdict(list)
+        self.times: dict[str, list] = defaultdict(list)
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            while self.context.ok():
+                self.executor.spin_once(timeout_sec=0.05)
+        except Exception:
+            pass
+
+    def subscribe(self, name: str, msg_type: type, qos=common.STREAM_QOS) -> None:
+        def callback(msg: Any) -> None:
+            self.messages[name].append(msg)
+            self.times[name].append(time.monotonic())
+
+        self.node.create_subscription(msg_type, name, callback, qos)
+
+    def wait_for(self, predicate, timeout: float) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if predicate():
+                return True
+            time.sleep(0.05)
+        return predicate()
+
+    def topics(self) -> dict[str, list[str]]:
+        return dict(self.node.get_topic_names_and_types())
+
+    def call(self, srv_type: type, name: str, request: Any, timeout: float = 10.0) -> Any:
+        client = self.node.create_client(srv_type, name)
+        assert client.wait_for_service(timeout_sec=timeout), f"service {name} not available"
+        future = client.call_async(request)
+        assert self.wait_for(future.done, timeout), f"service {name} did not answer"
+        return future.result()
+
+    def close(self) -> None:
+        self.context.try_shutdown()
+        self._thread.join(timeout=2)
+        self.node.destroy_node()
