@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import random
 import signal
@@ -87,11 +88,8 @@ class Probe:
         self._thread.start()
 
     def _spin(self) -> None:
-        try:
-            while self.context.ok():
-                self.executor.spin_once(timeout_sec=0.05)
-        except Exception:
-            pass
+        with contextlib.suppress(Exception):
+            self.executor.spin()
 
     def subscribe(self, name: str, msg_type: type, qos=common.STREAM_QOS) -> None:
         def callback(msg: Any) -> None:
@@ -107,6 +105,21 @@ class Probe:
                 return True
             time.sleep(0.05)
         return predicate()
+
+    def rate(self, name: str, seconds: float) -> float:
+        """Messages per second on `name` over the last `seconds` (waits that long)."""
+        start = len(self.times[name])
+        t0 = time.monotonic()
+        time.sleep(seconds)
+        return (len(self.times[name]) - start) / (time.monotonic() - t0)
+
+    def set_parameter(self, node: str, name: str, value: Any) -> Any:
+        """SetParameters on /<node>; returns the SetParametersResult."""
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+        return self.call(SetParameters, f"/{node}/set_parameters", request).results[0]
 
     def topics(self) -> dict[str, list[str]]:
         return dict(self.node.get_topic_names_and_types())
