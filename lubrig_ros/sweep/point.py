@@ -103,6 +103,27 @@ def linear_columns(config: RunConfig) -> dict[str, Any]:
     }
 
 
+def _measure(point: Point) -> dict[str, Any]:
+    """Every result column of one point (raises on failure)."""
+    clock = time.perf_counter()
+    config = from_mapping(point.config)
+    trajectory = simulate(config)
+    simulated = time.perf_counter()
+    summary = summarize(trajectory, config)
+    out: dict[str, Any] = {key: summary[key] for key in SUMMARY_KEYS}
+    peaks = summary["dominant_frequencies_hz"]
+    out["dominant_frequency_hz"] = peaks[0] if peaks else None
+    out["mu_range"] = summary["mu_max"] - summary["mu_min"]
+    if point.wavelet:
+        out.update(wavelet_columns(config, trajectory.displacement))
+    frequency = out.get("wavelet_frequency_hz") or out["dominant_frequency_hz"]
+    fundamental = summary["band_fundamental_hz"]
+    out["frequency_ratio"] = frequency / fundamental if frequency is not None and fundamental else None
+    out.update(linear_columns(config))
+    out["simulate_seconds"] = simulated - clock
+    return out
+
+
 def run_point(point: Point) -> dict[str, Any]:
     """Simulate and summarize one point; return its record (never raises)."""
     started = time.time()
@@ -117,23 +138,8 @@ def run_point(point: Point) -> dict[str, Any]:
         "started_at": started,
     }
     try:
-        config = from_mapping(point.config)
-        trajectory = simulate(config)
-        simulated = time.perf_counter()
-        summary = summarize(trajectory, config)
-        record.update({key: summary[key] for key in SUMMARY_KEYS})
-        peaks = summary["dominant_frequencies_hz"]
-        record["dominant_frequency_hz"] = peaks[0] if peaks else None
-        record["mu_range"] = summary["mu_max"] - summary["mu_min"]
-        record.update(wavelet_columns(config, trajectory.displacement) if point.wavelet else {})
-        frequency = record.get("wavelet_frequency_hz") or record["dominant_frequency_hz"]
-        fundamental = summary["band_fundamental_hz"]
-        record["frequency_ratio"] = (
-            frequency / fundamental if frequency is not None and fundamental else None
-        )
-        record.update(linear_columns(config))
-        record["simulate_seconds"] = simulated - clock
-    except Exception as exc:  # a failed point is data, not a crash of the sweep
+        record.update(_measure(point))
+    except Exception as exc:  # a failed point is data (no partial results), not a crash of the sweep
         record["status"] = "error"
         record["error"] = f"{type(exc).__name__}: {exc}"
         record["traceback"] = traceback.format_exc(limit=5)
