@@ -1,0 +1,232 @@
+"""`lubrig rig`: start the node processes for one run, wait for it, stop them, report.
+
+Starts belt_drive, plant, analysis (and the recorder with --bag DIR once
+lubrig_ros/nodes/recorder.py exists) on the current ROS_DOMAIN_ID, waits until the plant
+reports the run complete (sim) or the wall duration has passed (realtime), then stops every
+process with SIGINT (then SIGTERM after a grace period).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from ..core.params import CONVENTIONS, ParameterError
+from ..core.presets import RunConfig, config_dir, default_config, load_case, load_config
+from .main import CommandError
+
+NODES = ("plant", "belt_drive", "analysis")
+GRACE_S = 10.0
+
+
+def _executable(name: str) -> str:
+    """Console script `name` next to this interpreter, else on PATH."""
+    here = Path(sys.executable).parent / name
+    if here.is_file():
+        return str(here)
+    found = shutil.which(name)
+    if found is None:
+        raise CommandError(f"executable {name!r} not found (is lubrig_ros installed?)")
+    return found
+
+
+def recorder_available() -> bool:
+    """True once the recorder node module exists."""
+    return importlib.util.find_spec("lubrig_ros.nodes.recorder") is not None
+
+
+def select_config(args: argparse.Namespace) -> tuple[RunConfig, dict[str, object]]:
+    """The run configuration and the ROS parameters that select it."""
+    try:
+        if args.case is not None:
+            config, params = load_case(args.case), {"case": int(args.case)}
+        elif args.config is not None:
+            path = Path(args.config).resolve()
+            config, params = load_config(path), {"config_file": str(path)}
+        else:
+            config, params = default_config(), {}
+        if args.convention is not None:
+            config = config.with_overrides(convention=args.convention)
+        if args.duration is not None:
+            config = config.with_overrides(duration=args.duration)
+    except ParameterError as exc:
+        raise CommandError(str(exc)) from None
+    return config, params
+
+
+def _ros_args(params: dict[str, object], params_file: Path) -> list[str]:
+    args = ["--ros-args", "--params-file", str(params_file)]
+    for key, value in params.items():
+        args += ["-p", f"{key}:={value}"]
+    return args
+
+
+def _wait_complete(deadline: float, procs: dict[str, subprocess.Popen]) -> bool:
+    """Sim: wait for <ns>/run_complete = true (latched) from the plant."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from std_msgs.msg import Bool
+
+    from ..nodes import common
+
+    context = Context()
+    rclpy.init(context=context)
+    node = Node("lubrig_rig_launcher", context=context)
+    done = []
+    node.create_subscription(
+        Bool,
+        common.topic(common.DEFAULT_NAMESPACE, common.RUN_COMPLETE),
+        lambda m: done.append(True) if m.data else None,
+        common.LATCHED_QOS,
+    )
+    from rclpy.executors import SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    try:
+        while not done and time.monotonic() < deadline:
+            if any(p.poll() is not None for p in procs.values()):
+                break
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        node.destroy_node()
+        context.try_shutdown()
+    return bool(done)
+
+
+def stop_all(procs: dict[str, subprocess.Popen], grace: float = GRACE_S) -> dict[str, int]:
+    """SIGINT every running process, wait, then SIGTERM (and SIGKILL) what is left."""
+    for proc in procs.values():
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+    codes: dict[str, int] = {}
+    end = time.monotonic() + grace
+    for name, proc in procs.items():
+        try:
+            codes[name] = proc.wait(timeout=max(0.1, end - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            proc.terminate()
+            try:
+                codes[name] = proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                codes[name] = proc.wait()
+    return codes
+
+
+def run(args: argparse.Namespace) -> int:
+    """Start, wait, stop, report."""
+    config, params = select_config(args)
+    mode = args.mode
+    bag = Path(args.bag).resolve()
+    bag.mkdir(parents=True, exist_ok=True)
+    logs = bag / "logs"
+    logs.mkdir(exist_ok=True)
+    (bag / "run_config.yaml").write_text(config.to_yaml())
+    params_file = config_dir() / "nodes.yaml"
+    common_params = dict(params, mode=mode, duration=config.duration)
+    per_node: dict[str, dict[str, object]] = {
+        "plant": dict(common_params),
+        "belt_drive": dict(common_params),
+        "analysis": dict(params),
+    }
+    if args.convention is not None:
+        per_node["plant"]["convention"] = args.convention
+        per_node["analysis"]["convention"] = args.convention
+    procs: dict[str, subprocess.Popen] = {}
+    env = dict(os.environ)
+    env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
+    with_recorder = recorder_available() and not args.no_recorder
+    if with_recorder:
+        per_node["belt_drive"]["start_delay"] = 1.5  # the recorder must be subscribed first
+    try:
+        if with_recorder:
+            with open(logs / "recorder.log", "w") as log:
+                procs["recorder"] = subprocess.Popen(
+                    [_executable("recorder"), "--bag", str(bag / "bag")],
+                    env=env,
+                    stdout=log,
+                    stderr=subprocess.STDOUT,
+                )
+        for name in NODES:
+            with open(logs / f"{name}.log", "w") as log:
+                procs[name] = subprocess.Popen(
+                    [_executable(name), *_ros_args(per_node[name], params_file)],
+                    env=env,
+                    stdout=log,
+                    stderr=subprocess.STDOUT,
+                )
+        domain = env.get("ROS_DOMAIN_ID", "0")
+        print(f"lubrig rig: {config.name} ({mode}, {config.duration:g} s) on ROS_DOMAIN_ID {domain}")
+        start = time.monotonic()
+        if mode == "sim":
+            limit = args.timeout if args.timeout else max(60.0, 10.0 * config.duration)
+            complete = _wait_complete(start + limit, procs)
+            if not complete:
+                dead = [n for n, p in procs.items() if p.poll() is not None]
+                why = f"process(es) {dead} exited" if dead else f"timeout after {limit:g} s"
+                raise CommandError(f"sim run did not complete ({why}); see {logs}")
+        else:
+            end = start + config.duration
+            while time.monotonic() < end and all(p.poll() is None for p in procs.values()):
+                time.sleep(0.1)
+        wall = time.monotonic() - start
+    except KeyboardInterrupt:
+        print("lubrig rig: interrupted, stopping the nodes", file=sys.stderr)
+        wall = math.nan
+    finally:
+        # nodes first, the recorder last so that it has everything before it closes the bag
+        ordered = {n: p for n, p in procs.items() if n != "recorder"}
+        codes = stop_all(ordered)
+        if "recorder" in procs:
+            codes |= stop_all({"recorder": procs["recorder"]})
+    bad = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT)}
+    print(f"lubrig rig: run finished in {wall:.1f} s wall; results in {bag}")
+    print(f"  run configuration: {bag / 'run_config.yaml'}")
+    print(f"  node logs:         {logs}")
+    if with_recorder:
+        print(f"  bag:               {bag / 'bag'}")
+    else:
+        print("  (no recorder node installed yet: nothing recorded)")
+    if bad:
+        raise CommandError(f"node(s) exited with errors {bad}; see {logs}")
+    return 0
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r} is not valid; expected a finite number > 0 s")
+    return value
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `rig` subcommand."""
+    parser = subparsers.add_parser(
+        "rig",
+        help="run the rig as ROS 2 nodes (belt_drive, plant, analysis, recorder)",
+        description="Start the node processes on the current ROS_DOMAIN_ID, wait for the run, "
+        "stop them cleanly and report where the results are.",
+    )
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--case", type=int, metavar="N", help="study case 1..10")
+    group.add_argument("--config", metavar="FILE", help="run configuration YAML")
+    parser.add_argument("--mode", choices=("sim", "realtime"), default="sim")
+    parser.add_argument("--convention", choices=CONVENTIONS, help="override the convention")
+    parser.add_argument("--duration", type=_positive, metavar="S", help="run length in s")
+    parser.add_argument("--bag", required=True, metavar="DIR", help="output directory")
+    parser.add_argument("--timeout", type=_positive, metavar="S", help="sim: wall-time limit")
+    parser.add_argument("--no-recorder", action="store_true", help="do not start the recorder")
+    parser.set_defaults(func=run)
