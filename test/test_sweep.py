@@ -75,7 +75,18 @@ def test_points_equal_direct_core_runs(tmp_path):
         assert row["frequency_ratio"] == components[0].frequency_hz / summary["band_fundamental_hz"]
         assert row["status"] == "ok" and row["error"] is None
     assert {r["rig.damping_ratio"] for r in rows} == {0.0, 0.05}
-    assert len({r["worker"] for r in rows}) >= 1
+    # and `lubrig simulate` (the real script) of the last point writes the same summary
+    row = rows[-1]
+    run_dir = tmp_path / "simulate"
+    subprocess.run(
+        [str(LUBRIG), "simulate", "--cycle", "1e-7", "1e-6", "0.01", repr(row["band.ramp_time"]),
+         "--convention", "paper", "--zeta", repr(row["rig.damping_ratio"]), "--duration", "1",
+         "--out", str(run_dir)],
+        check=True, capture_output=True, timeout=120,
+    )
+    summary = json.loads((run_dir / "summary.json").read_text())
+    for key in SUMMARY_KEYS:
+        assert row[key] == summary[key], key
 
 
 def test_shipped_sweeps_hold_the_study_cases():
