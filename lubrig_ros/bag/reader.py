@@ -1,0 +1,206 @@
+"""Reading bags: integrity check, summary (`bag info`), messages, numpy arrays per topic."""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+from rosbags.rosbag2 import Reader
+
+from lubrig_ros.bag.errors import BagError
+from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
+from lubrig_ros.bag.repair import find_mcap
+from lubrig_ros.bag.writer import RUN_CONFIG_KEY, typestore
+
+
+@dataclass
+class TopicSummary:
+    """One topic of a bag."""
+
+    name: str
+    msgtype: str
+    count: int
+
+
+@dataclass
+class BagSummary:
+    """What `lubrig bag info` prints."""
+
+    path: Path
+    topics: list[TopicSummary]
+    start_ns: int
+    end_ns: int
+    chunks: int
+    custom_data: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def message_count(self) -> int:
+        """Total number of messages."""
+        return sum(t.count for t in self.topics)
+
+    @property
+    def duration_s(self) -> float:
+        """Time between first and last log time, seconds."""
+        return max(0, self.end_ns - self.start_ns) / 1e9
+
+    @property
+    def run_config(self) -> str | None:
+        """The run configuration YAML stored with the bag, if any."""
+        return self.custom_data.get(RUN_CONFIG_KEY)
+
+    def format(self) -> str:
+        """Human-readable text like `ros2 bag info`."""
+        lines = [
+            f"Files:         {self.path}",
+            f"Duration:      {self.duration_s:.3f} s",
+            f"Start:         {self.start_ns / 1e9:.9f} s",
+            f"End:           {self.end_ns / 1e9:.9f} s",
+            f"Messages:      {self.message_count}",
+            f"Chunks:        {self.chunks}",
+            "Topics:",
+        ]
+        width = max((len(t.name) for t in self.topics), default=0)
+        for t in self.topics:
+            lines.append(f"  {t.name:<{width}}  {t.msgtype:<36}  {t.count:>9}")
+        for key, value in sorted(self.custom_data.items()):
+            shown = value if "\n" not in value else f"<{len(value.splitlines())} lines of YAML>"
+            lines.append(f"Custom data:   {key}: {shown}")
+        return "\n".join(lines)
+
+
+def _load_metadata(bag_dir: Path) -> dict[str, object]:
+    meta = bag_dir / "metadata.yaml"
+    if not meta.is_file():
+        raise BagError(
+            f"bag {str(bag_dir)!r} has no metadata.yaml (recording not finalized?): "
+            f"run `lubrig bag repair {bag_dir}`"
+        )
+    try:
+        return dict(yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"])
+    except (yaml.YAMLError, KeyError, TypeError) as exc:
+        raise BagError(f"bag {str(bag_dir)!r}: metadata.yaml is unreadable ({exc})") from exc
+
+
+def check_bag(bag: str | Path) -> BagSummary:
+    """Verify every chunk of the bag and that metadata.yaml agrees; BagError names the problem."""
+    bag = Path(bag)
+    mcap_path = find_mcap(bag)
+    meta = _load_metadata(mcap_path.parent)
+    result = ScanResult()
+    schemas: dict[int, str] = {}
+    channels: dict[int, tuple[str, str]] = {}
+    counts: dict[int, int] = {}
+    start, end = 2**63 - 1, 0
+    for rec in scan(mcap_path, result):
+        if isinstance(rec, Schema):
+            schemas[rec.id] = rec.name
+        elif isinstance(rec, Channel):
+            channels[rec.id] = (rec.topic, schemas.get(rec.schema_id, "?"))
+            counts.setdefault(rec.id, 0)
+        elif isinstance(rec, Message):
+            counts[rec.channel_id] = counts.get(rec.channel_id, 0) + 1
+            start, end = min(start, rec.log_time), max(end, rec.log_time)
+    if not result.complete:
+        problem = result.stop_reason or "; ".join(result.damaged_chunks)
+        raise BagError(f"bag {str(bag)!r} is damaged: {problem}; run `lubrig bag repair {bag}`")
+    listed = {
+        t["topic_metadata"]["name"]: int(t["message_count"])
+        for t in meta.get("topics_with_message_count", [])  # type: ignore[union-attr]
+    }
+    found = {channels[c][0]: n for c, n in counts.items() if c in channels}
+    if any(listed.get(name, 0) != n for name, n in found.items()) or set(listed) - set(found):
+        raise BagError(
+            f"bag {str(bag)!r}: metadata.yaml counts {listed} disagree with the file {found}; "
+            f"run `lubrig bag repair --force {bag}`"
+        )
+    topics = [TopicSummary(channels[c][0], channels[c][1], counts[c]) for c in sorted(channels)]
+    total = sum(counts.values())
+    return BagSummary(
+        mcap_path,
+        topics,
+        start if total else 0,
+        end if total else 0,
+        result.chunks,
+        {str(k): str(v) for k, v in dict(meta.get("custom_data") or {}).items()},  # type: ignore[call-overload]
+    )
+
+
+def bag_info(bag: str | Path) -> BagSummary:
+    """Summary of a bag after a full integrity check (alias of check_bag)."""
+    return check_bag(bag)
+
+
+def read_messages(
+    bag: str | Path, topics: Iterable[str] | None = None
+) -> Iterator[tuple[str, str, int, bytes]]:
+    """Yield (topic, msgtype, log_time_ns, cdr_bytes) in log-time order (via rosbags)."""
+    bag_dir = find_mcap(bag).parent
+    wanted = set(topics) if topics is not None else None
+    with Reader(bag_dir) as reader:
+        conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
+        for conn, t, data in reader.messages(connections=conns):
+            yield conn.topic, conn.msgtype, t, bytes(data)
+
+
+@dataclass
+class TopicArrays:
+    """Messages of one topic as arrays: log time t (s) and one array per field."""
+
+    msgtype: str
+    t: np.ndarray
+    fields: dict[str, np.ndarray]
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        """Field array by name (``"t"`` gives the log times)."""
+        return self.t if key == "t" else self.fields[key]
+
+
+_F64 = struct.Struct("<d")
+
+
+def _decode(msgtype: str, data: bytes) -> dict[str, object]:
+    if msgtype == "std_msgs/msg/Float64" and len(data) >= 12 and data[1] == 1:
+        return {"data": _F64.unpack_from(data, 4)[0]}
+    msg = typestore().deserialize_cdr(data, msgtype)
+    if msgtype == "sensor_msgs/msg/JointState":
+        first = lambda arr: float(arr[0]) if len(arr) else np.nan  # noqa: E731
+        return {
+            "stamp": msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
+            "position": first(msg.position),
+            "velocity": first(msg.velocity),
+            "effort": first(msg.effort),
+        }
+    if msgtype == "rosgraph_msgs/msg/Clock":
+        return {"clock": msg.clock.sec + msg.clock.nanosec * 1e-9}
+    if hasattr(msg, "data") and np.isscalar(msg.data):
+        return {"data": msg.data}
+    return {"message": msg}
+
+
+def read_arrays(bag: str | Path, topics: Iterable[str] | None = None) -> dict[str, TopicArrays]:
+    """Read a bag into numpy arrays per topic.
+
+    Float64/UInt8/Bool topics give field ``data``; JointState gives ``stamp``, ``position``,
+    ``velocity``, ``effort`` (first joint); Clock gives ``clock`` (s); other types give
+    ``message`` (an object array of rosbags messages).
+    """
+    times: dict[str, list[int]] = {}
+    values: dict[str, dict[str, list[object]]] = {}
+    types: dict[str, str] = {}
+    for topic, msgtype, t, data in read_messages(bag, topics):
+        types[topic] = msgtype
+        times.setdefault(topic, []).append(t)
+        cols = values.setdefault(topic, {})
+        for key, val in _decode(msgtype, data).items():
+            cols.setdefault(key, []).append(val)
+    out: dict[str, TopicArrays] = {}
+    for topic, ts in times.items():
+        fields = {
+            k: np.array(v, dtype=object if k == "message" else None) for k, v in values[topic].items()
+        }
+        out[topic] = TopicArrays(types[topic], np.array(ts, dtype=np.int64) / 1e9, fields)
+    return out

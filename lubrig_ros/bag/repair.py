@@ -1,0 +1,219 @@
+"""Rebuild a bag's MCAP summary/index and metadata.yaml from the chunks that are intact."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+from mcap.writer import CompressionType
+from mcap.writer import Writer as McapWriter
+
+from lubrig_ros import __version__
+from lubrig_ros.bag.errors import BagError
+from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
+from lubrig_ros.bag.writer import RUN_CONFIG_KEY, typestore
+
+RUN_CONFIG_TOPIC_SUFFIX = "/run_config"
+
+
+@dataclass
+class RepairReport:
+    """What repair found and did."""
+
+    mcap: Path
+    rewritten: bool
+    complete: bool  # the original file was finalized and undamaged
+    stop_reason: str
+    damaged_chunks: list[str]
+    counts: dict[str, int] = field(default_factory=dict)
+    dropped: int = 0  # messages on channels whose definition was lost
+    backup: Path | None = None
+
+
+def find_mcap(bag: str | Path) -> Path:
+    """The .mcap file of a bag directory (from metadata.yaml, else the only *.mcap), or a file."""
+    bag = Path(bag)
+    if bag.is_file():
+        return bag
+    if not bag.is_dir():
+        raise BagError(f"bag {str(bag)!r} does not exist: give a bag directory or an .mcap file")
+    meta = bag / "metadata.yaml"
+    if meta.is_file():
+        try:
+            info = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]
+            files = info["relative_file_paths"]
+        except (yaml.YAMLError, KeyError, TypeError) as exc:
+            raise BagError(f"bag {str(bag)!r}: metadata.yaml is unreadable ({exc})") from exc
+        if len(files) != 1 or not str(files[0]).endswith(".mcap"):
+            raise BagError(f"bag {str(bag)!r}: expected one .mcap file, metadata lists {files}")
+        return bag / files[0]
+    found = sorted(bag.glob("*.mcap"))
+    if len(found) != 1:
+        raise BagError(f"bag {str(bag)!r}: expected one .mcap file, found {len(found)}")
+    return found[0]
+
+
+def _cdr_string(data: bytes) -> str | None:
+    try:
+        msg = typestore().deserialize_cdr(data, "std_msgs/msg/String")
+    except Exception:
+        return None
+    return str(msg.data)
+
+
+def metadata_dict(
+    mcap_name: str,
+    topics: list[tuple[str, str, str, int]],
+    start: int,
+    end: int,
+    custom_data: dict[str, str],
+) -> dict[str, object]:
+    """rosbag2 (version 9) metadata; topics are (name, type, offered_qos_yaml, count)."""
+    count = sum(t[3] for t in topics)
+    duration = max(0, end - start) if count else 0
+    start = start if count else 0
+    entries = []
+    for name, msgtype, qos_yaml, n in topics:
+        try:
+            qos = yaml.safe_load(qos_yaml) if qos_yaml else []
+        except yaml.YAMLError:
+            qos = []
+        try:
+            rihs = typestore().hash_rihs01(msgtype)
+        except Exception:
+            rihs = ""
+        entries.append(
+            {
+                "message_count": n,
+                "topic_metadata": {
+                    "name": name,
+                    "offered_qos_profiles": qos or [],
+                    "serialization_format": "cdr",
+                    "type": msgtype,
+                    "type_description_hash": rihs,
+                },
+            }
+        )
+    return {
+        "rosbag2_bagfile_information": {
+            "compression_format": "",
+            "compression_mode": "",
+            "custom_data": custom_data or None,
+            "duration": {"nanoseconds": duration},
+            "files": [
+                {
+                    "duration": {"nanoseconds": duration},
+                    "message_count": count,
+                    "path": mcap_name,
+                    "starting_time": {"nanoseconds_since_epoch": start},
+                }
+            ],
+            "message_count": count,
+            "relative_file_paths": [mcap_name],
+            "ros_distro": "rosbags",
+            "starting_time": {"nanoseconds_since_epoch": start},
+            "storage_identifier": "mcap",
+            "topics_with_message_count": entries,
+            "version": 9,
+        }
+    }
+
+
+def _write_text_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(path)
+
+
+def repair_bag(bag: str | Path, backup: bool = True, force: bool = False) -> RepairReport:
+    """Rebuild the MCAP file and metadata.yaml of bag from its intact chunks.
+
+    The rebuilt file replaces the original only once it is completely written; with backup the
+    original is kept as ``<name>.mcap.orig``. An intact, finalized bag is left alone unless force.
+    """
+    bag = Path(bag)
+    mcap_path = find_mcap(bag)
+    bag_dir = mcap_path.parent
+    meta_path = bag_dir / "metadata.yaml"
+    old_custom: dict[str, str] = {}
+    if meta_path.is_file():
+        try:
+            old = yaml.safe_load(meta_path.read_text())["rosbag2_bagfile_information"]
+            old_custom = dict(old.get("custom_data") or {})
+        except (yaml.YAMLError, KeyError, TypeError, AttributeError):
+            old_custom = {}
+
+    result = ScanResult()
+    tmp = mcap_path.with_name(mcap_path.name + ".repair.tmp")
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    out_schema: dict[int, int] = {}
+    out_channel: dict[int, int] = {}
+    counts: dict[int, int] = {}
+    start, end, dropped = 2**63 - 1, 0, 0
+    run_config: str | None = None
+    try:
+        with open(tmp, "wb") as stream:
+            out = McapWriter(stream, compression=CompressionType.ZSTD)
+            out.start(profile="ros2", library=f"lubrig_ros-{__version__} repair")
+            for rec in scan(mcap_path, result):
+                if isinstance(rec, Schema):
+                    if rec.id not in schemas:
+                        schemas[rec.id] = rec
+                        out_schema[rec.id] = out.register_schema(rec.name, rec.encoding, rec.data)
+                elif isinstance(rec, Channel):
+                    if rec.id not in channels and rec.schema_id in out_schema:
+                        channels[rec.id] = rec
+                        out_channel[rec.id] = out.register_channel(
+                            rec.topic, rec.message_encoding, out_schema[rec.schema_id], rec.metadata
+                        )
+                        counts[rec.id] = 0
+                elif isinstance(rec, Message):
+                    if rec.channel_id not in out_channel:
+                        dropped += 1
+                        continue
+                    out.add_message(
+                        out_channel[rec.channel_id], rec.log_time, rec.data, rec.publish_time, rec.sequence
+                    )
+                    counts[rec.channel_id] += 1
+                    start, end = min(start, rec.log_time), max(end, rec.log_time)
+                    ch = channels[rec.channel_id]
+                    if run_config is None and ch.topic.endswith(RUN_CONFIG_TOPIC_SUFFIX):
+                        run_config = _cdr_string(rec.data)
+            report = RepairReport(
+                mcap_path, False, result.complete, result.stop_reason, result.damaged_chunks,
+                {channels[c].topic: n for c, n in counts.items()}, dropped,
+            )
+            if result.complete and meta_path.is_file() and not force:
+                stream.close()
+                tmp.unlink()
+                return report
+            custom = dict(old_custom)
+            if run_config is not None:
+                custom.setdefault(RUN_CONFIG_KEY, run_config)
+            topics = [
+                (ch.topic, schemas[ch.schema_id].name, ch.metadata.get("offered_qos_profiles", ""),
+                 counts[cid])
+                for cid, ch in channels.items()
+            ]
+            meta = metadata_dict(mcap_path.name, topics, start, end, custom)
+            info = meta["rosbag2_bagfile_information"]
+            out.add_metadata(
+                "rosbag2", {"serialized_metadata": yaml.safe_dump(info, default_flow_style=False)}
+            )
+            out.finish()
+            stream.flush()
+            os.fsync(stream.fileno())
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    if backup:
+        report.backup = mcap_path.with_name(mcap_path.name + ".orig")
+        if not report.backup.exists():
+            os.link(mcap_path, report.backup)
+    tmp.replace(mcap_path)
+    _write_text_atomic(meta_path, yaml.safe_dump(meta, default_flow_style=False))
+    report.rewritten = True
+    return report
