@@ -48,8 +48,16 @@ class Axis:
 
     @property
     def log(self) -> bool:
-        """Whether the axis is naturally drawn on a log scale."""
-        return self.kind in ("logspace", "loguniform")
+        """Whether the axis is drawn on a log scale: log-spaced, or positive values over >= 20x."""
+        if self.kind in ("logspace", "loguniform"):
+            return True
+        numbers = [v for v in self.values if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        return (
+            self.kind == "values"
+            and len(numbers) == len(self.values) > 2
+            and min(numbers) > 0
+            and max(numbers) >= 20 * min(numbers)
+        )
 
 
 @dataclass(frozen=True)
