@@ -1,0 +1,140 @@
+"""Benchmark of the nodes over real DDS: realtime deadline misses and latency; sim throughput.
+
+    .venv/bin/python bench/bench_realtime.py [--duration 60] [--sim-duration 20] [--case 1]
+
+Realtime: plant + belt_drive (realtime, 1 kHz) + analysis for --duration s of wall time; the
+figures are the plant's own diagnostics (deadline misses: ticks finished more than one period
+after their deadline; latency: band message receive time → state publish time inside the plant).
+Sim: plant + belt_drive + analysis for --sim-duration s of rig time of --case; rig seconds per
+wall second (first band sample → run_complete) next to core.run.simulate on the same config.
+Runs on its own random ROS_DOMAIN_ID, discovery on localhost.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
+from diagnostic_msgs.msg import DiagnosticArray
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Bool
+from test_nodes_support import Probe, Procs
+
+from lubrig_ros.core.presets import load_case
+from lubrig_ros.core.run import simulate
+from lubrig_ros.nodes import common
+
+
+def _status(array: DiagnosticArray, name: str) -> dict[str, str]:
+    for status in array.status:
+        if status.name == name:
+            return {kv.key: kv.value for kv in status.values}
+    return {}
+
+
+def bench_realtime(duration: float, tmp: Path) -> dict[str, str]:
+    domain = random.randint(100, 230)
+    probe, procs = Probe(domain), Procs(domain, tmp)
+    try:
+        probe.subscribe("/diagnostics", DiagnosticArray)
+        procs.start("plant", mode="realtime")
+        procs.start("belt_drive", mode="realtime")
+        procs.start("analysis")
+        timing = f"{common.DEFAULT_NAMESPACE}/state"
+        probe.subscribe(timing, __import__("sensor_msgs.msg", fromlist=["JointState"]).JointState)
+        if not probe.wait_for(lambda: probe.messages[timing], 30):
+            raise RuntimeError("plant did not start:\n" + procs.log("plant"))
+        probe.messages[timing].clear()
+        time.sleep(duration)
+
+        def plant_timing() -> dict[str, str]:
+            for array in reversed(probe.messages["/diagnostics"]):
+                values = _status(array, "lubrig/plant: timing")
+                if values:
+                    return values
+            return {}
+
+        values = plant_timing()
+        values["probe_state_messages"] = str(len(probe.messages[timing]))
+        return values
+    finally:
+        procs.stop()
+        probe.close()
+
+
+def bench_sim(case: int, rig_seconds: float, tmp: Path) -> tuple[float, float]:
+    domain = random.randint(100, 230)
+    probe, procs = Probe(domain), Procs(domain, tmp)
+    ns = common.DEFAULT_NAMESPACE
+    try:
+        probe.subscribe("/clock", Clock)
+        probe.subscribe(f"{ns}/run_complete", Bool, common.LATCHED_QOS)
+        for name in ("plant", "belt_drive"):
+            procs.start(name, case=case, duration=rig_seconds)
+        procs.start("analysis", case=case)
+        if not probe.wait_for(
+            lambda: any(m.data for m in probe.messages[f"{ns}/run_complete"]), 60 + 5 * rig_seconds
+        ):
+            raise RuntimeError("sim run did not complete:\n" + procs.log("plant"))
+        clock_times = [
+            t
+            for t, m in zip(probe.times["/clock"], probe.messages["/clock"], strict=True)
+            if m.clock.nanosec or m.clock.sec
+        ]
+        done = next(
+            t
+            for t, m in zip(
+                probe.times[f"{ns}/run_complete"], probe.messages[f"{ns}/run_complete"], strict=True
+            )
+            if m.data
+        )
+        node_rate = rig_seconds / (done - clock_times[0])
+    finally:
+        procs.stop()
+        probe.close()
+    config = load_case(case).with_overrides(duration=rig_seconds)
+    start = time.perf_counter()
+    simulate(config)
+    core_rate = rig_seconds / (time.perf_counter() - start)
+    return node_rate, core_rate
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--duration", type=float, default=60.0, help="realtime run, s (default 60)")
+    parser.add_argument("--sim-duration", type=float, default=20.0, help="sim run, rig s (default 20)")
+    parser.add_argument("--case", type=int, default=1)
+    args = parser.parse_args()
+    os.environ["RCUTILS_LOGGING_BUFFERED_STREAM"] = "0"
+    with tempfile.TemporaryDirectory() as tmp:
+        values = bench_realtime(args.duration, Path(tmp))
+        print(f"realtime 1 kHz, {args.duration:g} s wall, plant + belt_drive + analysis:")
+        samples = int(values.get("samples", "0"))
+        misses = int(values.get("deadline_misses", "0"))
+        print(
+            f"  plant ticks {samples}, deadline misses {misses} ({100 * misses / max(samples, 1):.3f} %)"
+        )
+        print(
+            f"  max lateness of a tick start {1e3 * float(values.get('max_lateness_s', 'nan')):.2f} ms"
+        )
+        print(
+            f"  band->state latency in the plant: p50 {1e3 * float(values.get('latency_p50_s', 'nan')):.3f}"
+            f" ms, p99 {1e3 * float(values.get('latency_p99_s', 'nan')):.3f} ms"
+            f" ({values.get('latency_samples')} samples)"
+        )
+        print(f"  state messages seen by a probe process: {values.get('probe_state_messages')}")
+        node_rate, core_rate = bench_sim(args.case, args.sim_duration, Path(tmp))
+        print(f"sim, case {args.case}, {args.sim_duration:g} rig s, plant + belt_drive + analysis:")
+        print(
+            f"  nodes: {node_rate:.2f} rig s per wall s; core.run.simulate: {core_rate:.1f} rig s per wall s"
+        )
+
+
+if __name__ == "__main__":
+    main()
