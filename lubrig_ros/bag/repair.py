@@ -55,7 +55,8 @@ def find_mcap(bag: str | Path) -> Path:
     return found[0]
 
 
-def _cdr_string(data: bytes) -> str | None:
+def cdr_string(data: bytes) -> str | None:
+    """Text of a serialized std_msgs/msg/String, or None if it does not decode."""
     try:
         msg = typestore().deserialize_cdr(data, "std_msgs/msg/String")
     except Exception:
@@ -181,7 +182,7 @@ def repair_bag(bag: str | Path, backup: bool = True, force: bool = False) -> Rep
                     start, end = min(start, rec.log_time), max(end, rec.log_time)
                     ch = channels[rec.channel_id]
                     if run_config is None and ch.topic.endswith(RUN_CONFIG_TOPIC_SUFFIX):
-                        run_config = _cdr_string(rec.data)
+                        run_config = cdr_string(rec.data)
             report = RepairReport(
                 mcap_path, False, result.complete, result.stop_reason, result.damaged_chunks,
                 {channels[c].topic: n for c, n in counts.items()}, dropped,

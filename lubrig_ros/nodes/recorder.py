@@ -1,0 +1,418 @@
+"""`recorder` node: record the rig's topics into a rosbag2 bag (MCAP, zstd chunks).
+
+One Python process takes only ~2,500-3,000 messages/s, so subscriptions are spread over worker
+processes (multiprocessing, spawn). Each worker runs a real rclpy node with raw subscriptions
+(serialized CDR bytes, no deserialization) spun by a SingleThreadedExecutor, and ships
+(topic index, receive time, bytes) batches to this process, the only writer of the bag.
+
+Log times: receive time (system clock, ns); with --use-sim-time the rig time: the header stamp
+for stamped types, the /clock value for /clock, and for unstamped types the latest /clock value
+received before the message.
+
+Exit status: 0 after a clean stop (SIGINT/SIGTERM or --duration), 2 on bad arguments or an
+unwritable output, 1 if writing failed while recording (the bag is then finalized up to the
+last flushed chunk).
+"""
+
+from __future__ import annotations
+
+import argparse
+import bisect
+import contextlib
+import importlib
+import math
+import multiprocessing as mp
+import os
+import queue
+import signal
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from lubrig_ros.bag.contract import DEFAULT_NAMESPACE, TopicSpec, documented_topics, resolve
+from lubrig_ros.bag.errors import BagError
+from lubrig_ros.bag.repair import cdr_string
+from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, leading_stamp_ns, serialize_string
+
+BATCH_PERIOD_S = 0.02
+SIM_HOLD_NS = 300_000_000  # wait this long for /clock before stamping an unstamped message
+
+
+def message_class(msgtype: str) -> type:
+    """The rclpy message class of "pkg/msg/Name"."""
+    parts = msgtype.split("/")
+    if len(parts) != 3:
+        raise ValueError(f"message type {msgtype!r} is invalid: expected pkg/msg/Name")
+    try:
+        return getattr(importlib.import_module(f"{parts[0]}.{parts[1]}"), parts[2])
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"message type {msgtype!r} is not installed") from exc
+
+
+# ----------------------------------------------------------------------------- worker process
+
+
+def _worker(wid: int, specs: list[TopicSpec], first_index: int, out: mp.Queue, stop: mp.Event) -> None:
+    """Subscribe to specs (raw) and ship batches of (index, recv_ns, bytes) to out."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent coordinates the stop
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from rclpy.signals import SignalHandlerOptions
+
+    parent = os.getppid()
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node(f"lubrig_recorder_w{wid}_{os.getpid()}")
+    batch: list[tuple[int, int, bytes]] = []
+    now = time.time_ns
+
+    def make_cb(index: int):
+        def cb(data: bytes) -> None:
+            batch.append((index, now(), data))
+
+        return cb
+
+    subs = []
+    for i, spec in enumerate(specs):
+        qos = QoSProfile(
+            depth=spec.depth,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL if spec.latched else DurabilityPolicy.VOLATILE,
+        )
+        subs.append(
+            node.create_subscription(
+                message_class(spec.msgtype), spec.name, make_cb(first_index + i), qos, raw=True
+            )
+        )
+
+    class _StopError(Exception):
+        pass
+
+    def ship() -> None:
+        nonlocal batch
+        if batch:
+            out.put(("data", wid, batch))
+            batch = []
+        if stop.is_set() or os.getppid() != parent:
+            raise _StopError
+
+    node.create_timer(BATCH_PERIOD_S, ship)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    out.put(("ready", wid, None))
+    with contextlib.suppress(_StopError):
+        executor.spin()
+    out.put(("data", wid, batch))
+    out.put(("done", wid, None))
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+# ----------------------------------------------------------------------------- writer process
+
+
+@dataclass
+class _Topic:
+    spec: TopicSpec
+    stamped: bool
+    is_clock: bool
+
+
+class SimClock:
+    """Maps receive times to rig time from the stream of /clock messages."""
+
+    def __init__(self) -> None:
+        self.recv: list[int] = []
+        self.sim: list[int] = []
+
+    def add(self, recv_ns: int, sim_ns: int) -> None:
+        """Record one /clock message."""
+        self.recv.append(recv_ns)
+        self.sim.append(sim_ns)
+        if len(self.recv) > 20000:
+            del self.recv[:10000], self.sim[:10000]
+
+    def lookup(self, recv_ns: int, force: bool) -> int | None:
+        """Rig time at recv_ns, or None if /clock may still arrive for it (unless force)."""
+        if not self.recv or (recv_ns > self.recv[-1] and not force):
+            return None
+        i = bisect.bisect_right(self.recv, recv_ns) - 1
+        return self.sim[max(i, 0)]
+
+
+class Recorder:
+    """Writer side: receives worker batches and writes them to the bag."""
+
+    def __init__(
+        self,
+        output: Path,
+        specs: list[TopicSpec],
+        workers: int,
+        run_config: str | None,
+        use_sim_time: bool,
+        flush_interval: float,
+        namespace: str = DEFAULT_NAMESPACE,
+    ) -> None:
+        config_spec = documented_topics(namespace)[resolve("run_config", namespace)]
+        if run_config is not None:  # the given configuration is written, not subscribed
+            specs = [s for s in specs if s.name != config_spec.name]
+        self.topics = [
+            _Topic(s, has_leading_stamp(s.msgtype), s.msgtype == "rosgraph_msgs/msg/Clock")
+            for s in specs
+        ]
+        self.use_sim_time = use_sim_time
+        self.flush_interval = flush_interval
+        self.writer = BagWriter(output, run_config)
+        self.config_topic = config_spec
+        if run_config is not None:
+            self.writer.add_topic(config_spec.name, config_spec.msgtype, 1, True)
+        for t in self.topics:
+            self.writer.add_topic(t.spec.name, t.spec.msgtype, t.spec.depth, t.spec.latched)
+        self.run_config = run_config
+        self.config_written = False
+        self.clock = SimClock()
+        self.held: list[tuple[int, int, bytes]] = []
+        self.n_workers = max(1, min(workers, len(specs)))
+        self.queue: mp.Queue = mp.get_context("spawn").Queue()
+        self.stop_event = mp.get_context("spawn").Event()
+        self.procs: list[mp.Process] = []
+
+    def start_workers(self) -> None:
+        """Spawn the subscriber processes; return when all have created their subscriptions."""
+        ctx = mp.get_context("spawn")
+        groups = [list(range(i, len(self.topics), self.n_workers)) for i in range(self.n_workers)]
+        self.index_map: list[int] = []
+        for wid, group in enumerate(groups):
+            first = len(self.index_map)
+            self.index_map.extend(group)
+            proc = ctx.Process(
+                target=_worker,
+                args=(wid, [self.topics[i].spec for i in group], first, self.queue, self.stop_event),
+                daemon=True,
+            )
+            proc.start()
+            self.procs.append(proc)
+        ready = 0
+        deadline = time.monotonic() + 30
+        while ready < len(self.procs):
+            kind, _wid, payload = self.queue.get(timeout=max(0.1, deadline - time.monotonic()))
+            if kind == "ready":
+                ready += 1
+            elif kind == "data":
+                self._handle(payload)
+
+    def _log_time(self, topic: _Topic, recv: int, data: bytes, force: bool) -> int | None:
+        if not self.use_sim_time:
+            return recv
+        if topic.stamped:
+            try:
+                stamp = leading_stamp_ns(data)
+            except ValueError:
+                stamp = None
+            if topic.is_clock and stamp is not None:
+                self.clock.add(recv, stamp)
+            if stamp is not None:
+                return stamp
+        t = self.clock.lookup(recv, force)
+        if t is None and force:
+            return recv  # no /clock at all: fall back to receive time
+        return t
+
+    def _write(self, topic: _Topic, t: int, data: bytes) -> None:
+        if not self.config_written and self.run_config is not None:
+            self._write_config(t)
+        if topic.spec.name == self.config_topic.name:  # published by the launcher: keep it
+            text = cdr_string(data)
+            if text is not None:
+                self.writer.set_run_config(text)
+        self.writer.write(topic.spec.name, topic.spec.msgtype, t, data)
+
+    def _write_config(self, t: int) -> None:
+        assert self.run_config is not None
+        spec = self.config_topic
+        self.writer.write(spec.name, spec.msgtype, t, serialize_string(self.run_config))
+        self.config_written = True
+
+    def _handle(self, batch: list[tuple[int, int, bytes]], force: bool = False) -> None:
+        if self.use_sim_time:  # /clock first, so that unstamped messages can be resolved
+            for idx, recv, data in batch:
+                topic = self.topics[self.index_map[idx]]
+                if topic.is_clock:
+                    self._write(topic, self._log_time(topic, recv, data, True) or recv, data)
+            batch = [m for m in batch if not self.topics[self.index_map[m[0]]].is_clock]
+            pending, self.held = self.held + batch, []
+            now = time.time_ns()
+            for idx, recv, data in pending:
+                topic = self.topics[self.index_map[idx]]
+                t = self._log_time(topic, recv, data, force or now - recv > SIM_HOLD_NS)
+                if t is None:
+                    self.held.append((idx, recv, data))
+                else:
+                    self._write(topic, t, data)
+            return
+        for idx, recv, data in batch:
+            self._write(self.topics[self.index_map[idx]], recv, data)
+
+    def run(self, should_stop: list[bool], duration: float | None) -> None:
+        """Write batches until should_stop[0] or duration elapses, then drain the workers."""
+        if self.run_config is not None and not self.use_sim_time:
+            self._write_config(time.time_ns())
+            self.writer.flush()
+        end = time.monotonic() + duration if duration else math.inf
+        while not should_stop[0] and time.monotonic() < end:
+            try:
+                kind, _wid, payload = self.queue.get(timeout=0.05)
+            except queue.Empty:
+                kind = ""
+            if kind == "data":
+                self._handle(payload)
+            elif self.held:
+                self._handle([])
+            if time.monotonic() - self.writer.last_flush > self.flush_interval:
+                self.writer.flush()
+            if any(not p.is_alive() for p in self.procs):
+                raise BagError("a recorder worker process died; recording stopped")
+        self.drain()
+
+    def drain(self) -> None:
+        """Stop the workers and write everything they received."""
+        self.stop_event.set()
+        done = 0
+        deadline = time.monotonic() + 10
+        while done < len(self.procs) and time.monotonic() < deadline:
+            try:
+                kind, _wid, payload = self.queue.get(timeout=0.2)
+            except queue.Empty:
+                if not any(p.is_alive() for p in self.procs):
+                    break
+                continue
+            if kind == "data" and not self.writer.failed:
+                self._handle(payload)
+            elif kind == "done":
+                done += 1
+        if self.held and not self.writer.failed:
+            self._handle([], force=True)
+
+    def shutdown(self) -> None:
+        """Stop workers (if still running) and finalize the bag."""
+        self.stop_event.set()
+        for p in self.procs:
+            p.join(timeout=3)
+            if p.is_alive():
+                p.kill()
+        self.writer.close()
+
+
+# ----------------------------------------------------------------------------- command line
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Arguments of the recorder node."""
+    p = argparse.ArgumentParser(prog="recorder", description=__doc__.splitlines()[0])
+    p.add_argument("-o", "--output", type=Path, help="new bag directory (default: lubrig_<time>)")
+    p.add_argument("--namespace", default=DEFAULT_NAMESPACE, help="rig namespace (default /lubrig)")
+    p.add_argument(
+        "--topics", nargs="+", metavar="TOPIC",
+        help="topics to record (relative names go under the namespace; default: all documented)",
+    )
+    p.add_argument("--config", type=Path, help="YAML file of the run configuration to store")
+    p.add_argument("--use-sim-time", action="store_true", help="log times from rig time (/clock)")
+    p.add_argument("--workers", type=int, default=0, help="subscriber processes (0: auto)")
+    p.add_argument("--flush-interval", type=float, default=0.5, help="seconds between chunk flushes")
+    p.add_argument("--duration", type=float, help="stop after this many seconds")
+    return p
+
+
+def select_topics(namespace: str, topics: Sequence[str] | None) -> list[TopicSpec]:
+    """TopicSpecs of the selection; every name must be in the documented contract."""
+    docs = documented_topics(namespace)
+    if not topics:
+        return list(docs.values())
+    specs = []
+    for name in topics:
+        full = resolve(name, namespace)
+        if full not in docs:
+            raise ValueError(
+                f"topic {name!r} is not in the topic contract; valid: {', '.join(sorted(docs))}"
+            )
+        specs.append(docs[full])
+    return specs
+
+
+def auto_workers(specs: Sequence[TopicSpec]) -> int:
+    """Two high-rate (depth 1000) topics per worker; low-rate topics go along."""
+    fast = sum(1 for s in specs if s.depth >= 1000)
+    return max(1, min(4, math.ceil(fast / 2)))
+
+
+def run(args: argparse.Namespace) -> int:
+    """Record until SIGINT/SIGTERM or --duration; see the module docstring for exit codes."""
+    specs = select_topics(args.namespace, args.topics)
+    if args.workers < 0 or args.flush_interval <= 0:
+        raise ValueError(
+            f"--workers {args.workers} / --flush-interval {args.flush_interval}: "
+            "expected workers >= 0 and flush interval > 0"
+        )
+    if args.duration is not None and args.duration <= 0:
+        raise ValueError(f"--duration {args.duration} is invalid: expected seconds > 0")
+    run_config = None
+    if args.config is not None:
+        run_config = args.config.read_text(encoding="utf-8")
+        try:
+            yaml.safe_load(run_config)
+        except yaml.YAMLError as exc:
+            raise ValueError(f"--config {str(args.config)!r} is not valid YAML: {exc}") from exc
+    output = args.output or Path(time.strftime("lubrig_%Y%m%d_%H%M%S"))
+    recorder = Recorder(
+        output, specs, args.workers or auto_workers(specs), run_config, args.use_sim_time,
+        args.flush_interval, args.namespace,
+    )
+    should_stop = [False]
+
+    def on_signal(_signum: int, _frame: object) -> None:
+        should_stop[0] = True
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    status = 0
+    try:
+        recorder.start_workers()
+        print(
+            f"recorder: recording {len(specs)} topics with {len(recorder.procs)} workers to {output}",
+            flush=True,
+        )
+        recorder.run(should_stop, args.duration)
+    except BagError as exc:
+        print(f"recorder: error: {exc}; recording stopped", file=sys.stderr, flush=True)
+        status = 1
+    finally:
+        try:
+            recorder.shutdown()
+        except BagError as exc:
+            print(f"recorder: error: {exc}", file=sys.stderr, flush=True)
+            status = 1
+    counts = ", ".join(f"{k}={v}" for k, v in recorder.writer.counts.items() if v)
+    print(f"recorder: stopped; bag {output}: {counts}", flush=True)
+    return status
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Console script `recorder` (ROS arguments after --ros-args are ignored)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if "--ros-args" in argv:
+        argv = argv[: argv.index("--ros-args")]
+    args = build_parser().parse_args(argv)
+    try:
+        return run(args)
+    except (ValueError, OSError, BagError) as exc:
+        print(f"recorder: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
