@@ -1,0 +1,21 @@
+"""`lubrig replay BAG`: republish a recorded bag (see lubrig_ros.nodes.replay)."""
+
+from __future__ import annotations
+
+import argparse
+
+from lubrig_ros.nodes import replay
+
+
+def _run(args: argparse.Namespace) -> int:
+    try:
+        return replay.run(args)
+    except replay.BagError as exc:
+        raise ValueError(str(exc)) from exc
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `replay` subcommand."""
+    p = subparsers.add_parser("replay", help="republish a bag with its original timing")
+    replay.add_arguments(p)
+    p.set_defaults(func=_run)
