@@ -16,6 +16,7 @@ Services: <ns>/plant/reset (Trigger), <ns>/plant/pause (SetBool).
 from __future__ import annotations
 
 import math
+import struct
 import sys
 import threading
 import time
@@ -142,7 +143,10 @@ class Plant(Node):
         )
         self.pub_config.publish(String(data=self.config.to_yaml()))
         self.pub_complete.publish(Bool(data=False))
-        self.create_subscription(Float64, common.topic(ns, common.BAND_VELOCITY), self._on_band, qos)
+        # raw (serialized CDR) subscription: about 2x cheaper per message than a Float64 object
+        self.create_subscription(
+            Float64, common.topic(ns, common.BAND_VELOCITY), self._on_band_raw, qos, raw=True
+        )
         self.create_service(Trigger, common.topic(ns, common.RESET_SERVICE), self._on_reset)
         self.create_service(SetBool, common.topic(ns, common.PAUSE_SERVICE), self._on_pause)
         self.create_timer(self.diagnostics_period, self._publish_diagnostics)
@@ -234,9 +238,15 @@ class Plant(Node):
         return response
 
     # ---- band input ----------------------------------------------------------------------
-    def _on_band(self, msg: Float64) -> None:
+    def _on_band_raw(self, data: bytes) -> None:
+        """Decode a serialized std_msgs/Float64 (4-byte CDR header + double); bad sizes are rejected."""
+        if len(data) < 12 or data[1] not in (0, 1):
+            self._on_band_value(float("nan"))
+            return
+        self._on_band_value(struct.unpack_from("<d" if data[1] == 1 else ">d", data, 4)[0])
+
+    def _on_band_value(self, value: float) -> None:
         now = time.perf_counter()
-        value = msg.data
         self.received += 1
         if not (isinstance(value, float) and math.isfinite(value) and abs(value) <= self.band_limit):
             self.rejected += 1
