@@ -274,3 +274,15 @@ def test_progress_reports_time_left(tmp_path):
     lines = stream.getvalue().splitlines()
     assert lines and lines[-1].startswith("sweep sweep: 3/3 points (0 resumed, 0 failed)")
     assert all("left" in line for line in lines)
+
+
+def test_steady_sliding_has_no_dominant_frequency():
+    spec = parse_spec({"base": {"band": {"kind": "constant", "velocity": 1e-6}, "rig": {"damping_ratio": 0.2},
+                                "simulation": {"duration": 20.0}},
+                       "axes": [{"parameter": "band.velocity", "values": [1e-6]}]})
+    from lubrig_ros.sweep import run_point
+
+    record = run_point(spec.points[0])
+    assert record["status"] == "ok" and record["x_peak_to_peak"] == 0.0
+    assert record["dominant_frequency_hz"] is None and record["wavelet_frequency_hz"] is None
+    assert "constant in the window" in record["wavelet_error"] and record["linear_stable"] is True

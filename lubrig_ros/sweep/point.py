@@ -14,6 +14,8 @@ import time
 import traceback
 from typing import Any
 
+import numpy as np
+
 from ..core.presets import RunConfig, from_mapping
 from ..core.run import simulate, summarize
 from ..core.stability import linear_stability
@@ -33,6 +35,8 @@ SUMMARY_KEYS = (
     "dominant_frequencies_hz",
     "spectral_amplitudes",
 )
+#: Stationary windows with peak-to-peak <= this x max|x| are steady sliding (no frequency).
+STEADY_RELATIVE_PTP = 1e-12
 #: Wavelet components kept per point.
 WAVELET_COMPONENTS = 3
 
@@ -51,6 +55,8 @@ def wavelet_columns(config: RunConfig, displacement: Any) -> dict[str, Any]:
         "wavelet_frequencies_hz": [],
         "wavelet_error": None,
     }
+    if displacement is None:
+        return empty
     try:
         from ..core.wavelet import dominant_frequencies
     except ImportError as exc:  # pragma: no cover - the module exists in this tree
@@ -111,10 +117,19 @@ def _measure(point: Point) -> dict[str, Any]:
     simulated = time.perf_counter()
     summary = summarize(trajectory, config)
     out: dict[str, Any] = {key: summary[key] for key in SUMMARY_KEYS}
+    window = trajectory.displacement[trajectory.time >= trajectory.time[-1] / 2.0]
+    # a window constant to rounding (steady sliding) has no dominant frequency: the spectra of
+    # its mean-subtracted rounding residue show spurious peaks, so none is reported
+    steady = summary["x_peak_to_peak"] <= STEADY_RELATIVE_PTP * float(np.max(np.abs(window)))
     peaks = summary["dominant_frequencies_hz"]
-    out["dominant_frequency_hz"] = peaks[0] if peaks else None
+    out["dominant_frequency_hz"] = peaks[0] if peaks and not steady else None
     out["mu_range"] = summary["mu_max"] - summary["mu_min"]
-    if point.wavelet:
+    if point.wavelet and steady:
+        out.update(wavelet_columns(config, None))
+        out["wavelet_error"] = (
+            f"displacement constant in the window (peak-to-peak {summary['x_peak_to_peak']:g} m)"
+        )
+    elif point.wavelet:
         out.update(wavelet_columns(config, trajectory.displacement))
     frequency = out.get("wavelet_frequency_hz") or out["dominant_frequency_hz"]
     fundamental = summary["band_fundamental_hz"]
