@@ -13,7 +13,7 @@ from mcap.writer import Writer as McapWriter
 from lubrig_ros import __version__
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
-from lubrig_ros.bag.writer import RUN_CONFIG_KEY, typestore
+from lubrig_ros.bag.writer import CONFIG_SIDECAR, RUN_CONFIG_KEY, typestore
 
 RUN_CONFIG_TOPIC_SUFFIX = "/run_config"
 
@@ -192,6 +192,9 @@ def repair_bag(bag: str | Path, backup: bool = True, force: bool = False) -> Rep
                 tmp.unlink()
                 return report
             custom = dict(old_custom)
+            sidecar = bag_dir / CONFIG_SIDECAR
+            if RUN_CONFIG_KEY not in custom and sidecar.is_file():
+                custom[RUN_CONFIG_KEY] = sidecar.read_text(encoding="utf-8")
             if run_config is not None:
                 custom.setdefault(RUN_CONFIG_KEY, run_config)
             topics = [

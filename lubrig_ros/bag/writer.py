@@ -32,6 +32,7 @@ from lubrig_ros.bag.errors import BagError
 
 RUN_CONFIG_KEY = "lubrig_ros.run_config"
 VERSION_KEY = "lubrig_ros.version"
+CONFIG_SIDECAR = "run_config.yaml"  # copy of the run configuration, kept for repair after a crash
 
 _TYPESTORE: Typestore | None = None
 
@@ -123,12 +124,24 @@ class BagWriter:
             raise BagError(f"cannot create bag {str(self.path)!r}: {exc.strerror or exc}") from exc
         except Exception as exc:  # rosbags WriterError
             raise BagError(f"cannot create bag {str(self.path)!r}: {exc}") from exc
+        if run_config is not None:
+            self._guard(lambda: self._write_sidecar(run_config))
         self.last_flush = time.monotonic()
 
     def set_run_config(self, text: str) -> None:
         """Store the run configuration (YAML) in metadata custom_data."""
+        if text != self.run_config:
+            self._guard(lambda: self._write_sidecar(text))
         self.run_config = text
         self._writer.set_custom_data(RUN_CONFIG_KEY, text)
+
+    def _write_sidecar(self, text: str) -> None:
+        tmp = self.path / (CONFIG_SIDECAR + ".tmp")
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        tmp.replace(self.path / CONFIG_SIDECAR)
 
     def add_topic(self, topic: str, msgtype: str, depth: int = 1000, latched: bool = False) -> None:
         """Declare a topic (done implicitly by write with default QoS)."""
