@@ -44,7 +44,10 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
         config = config.with_overrides(band=ConstantBand(velocity))
     elif args.cycle is not None:
         names = ("V1", "V2", "TC", "TRAMP")
-        values = [parse_finite(f"--cycle {n}", t, "a finite number") for n, t in zip(names, args.cycle, strict=True)]
+        values = [
+            parse_finite(f"--cycle {n}", t, "a finite number")
+            for n, t in zip(names, args.cycle, strict=True)
+        ]
         config = config.with_overrides(band=RegularCycle(*values))
     elif args.profile is not None:
         config = config.with_overrides(band=TableBand.from_csv(args.profile))
