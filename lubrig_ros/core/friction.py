@@ -71,10 +71,10 @@ def mu_and_slope(v: float, p: np.ndarray) -> tuple[float, float]:
     u = (l_star / tau0) / v
     lifetime = tau0 * (-math.expm1(-u))  # <t_b>
     stretch = v * tau0 * _stretch_ratio(u)  # s(v)
-    ratio = v / v_ref
-    tau = tau_ref * ratio**k1  # τ(v)
+    log_ratio = math.log(v / v_ref)  # one log, two exp: cheaper than two powers
+    tau = tau_ref * math.exp(k1 * log_ratio)  # τ(v)
     phi = lifetime / (lifetime + tau)  # bonded fraction
-    eta = eta_ref * ratio**k2
+    eta = eta_ref * math.exp(k2 * log_ratio)
     scale = area / normal
     elastic = g_mod / thick
     mu = scale * (elastic * phi * stretch + (1.0 - phi) * eta * v / d_pen)

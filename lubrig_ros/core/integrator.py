@@ -37,6 +37,7 @@ _E = np.array([-13.0 - 7.0 * _S6, -13.0 + 7.0 * _S6, -1.0]) / 3.0
 _MU_REAL = 3.0 + 3.0 ** (2.0 / 3.0) - 3.0 ** (1.0 / 3.0)
 _NEWTON_MAXITER = 40
 _REL_FACTOR = 4.0
+_NEWTON_TOL = 0.03
 _MIN_FACTOR = 0.2
 _MAX_FACTOR = 8.0
 
@@ -46,10 +47,8 @@ STEP_TOO_SMALL = 1
 
 
 @njit(cache=True)
-def _solve3(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Gaussian elimination with partial pivoting for a 3x3 system."""
-    a = jac.copy()
-    b = rhs.copy()
+def _solve3(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
+    """Solve the 3x3 system a x = b by Gaussian elimination with partial pivoting (a, b destroyed)."""
     for col in range(3):
         pivot = col
         for row in range(col + 1, 3):
@@ -64,13 +63,11 @@ def _solve3(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
             for j in range(col, 3):
                 a[row, j] -= factor * a[col, j]
             b[row] -= factor * b[col]
-    x = np.empty(3)
     for row in range(2, -1, -1):
         acc = b[row]
         for j in range(row + 1, 3):
             acc -= a[row, j] * x[j]
         x[row] = acc / a[row, row]
-    return x
 
 
 @njit(cache=True)
@@ -92,12 +89,19 @@ def _radau_step(
     a2: np.ndarray,
     cc: np.ndarray,
     ee: np.ndarray,
+    work: np.ndarray,
+    jac: np.ndarray,
 ) -> tuple[bool, float, float, float]:
-    """One Radau IIA step of size h from t; returns (accepted, x_new, w_new, error_norm)."""
+    """One Radau IIA step of size h from t; returns (accepted, x_new, w_new, error_norm).
+
+    work (8x3) and jac (3x3) are scratch space, allocated once per advance() call.
+    """
     mass, damp, stiff, gamma = rig[0], rig[1], rig[2], rig[3]
     normal = fp[11]
     slope_vb = (vb1 - vb0) / dt
-    vb = np.empty(3)
+    vb, wst, g, gw, res, delta, zx, zw = (
+        work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7]
+    )
     for i in range(3):
         vb[i] = vb0 + slope_vb * (t + cc[i] * h - t0)
     # Newton on the stage velocities W (displacements X = x + h A W). Predictor: a sliding mass
@@ -107,14 +111,15 @@ def _radau_step(
     vb_now = vb0 + slope_vb * (t - t0)
     rel_now = vb_now - gamma * w
     stuck = abs(rel_now) < 1e-3 * abs(vb_now)
-    wst = np.empty(3)
+    mu0, dmu0 = mu_and_slope(rel_now, fp)
+    if not math.isfinite(dmu0):
+        dmu0 = 1e300
+    f_w = (normal * mu0 - damp * w - stiff * x) / mass
     for i in range(3):
-        wst[i] = w + (vb[i] - vb_now) / gamma if stuck else w
-    g = np.empty(3)
-    gw = np.empty(3)
-    res = np.empty(3)
-    jac = np.empty((3, 3))
+        # sliding: explicit-Euler velocity; stuck: follow the band
+        wst[i] = w + (vb[i] - vb_now) / gamma if stuck else w + cc[i] * h * f_w
     converged = False
+    norm_old = math.inf
     for _ in range(_NEWTON_MAXITER):
         for j in range(3):
             xj = x + h * (aa[j, 0] * wst[0] + aa[j, 1] * wst[1] + aa[j, 2] * wst[2])
@@ -128,8 +133,11 @@ def _radau_step(
             for j in range(3):
                 jac[i, j] = -h * aa[i, j] * gw[j] + h * h * stiff / mass * a2[i, j]
             jac[i, i] += 1.0
-        delta = _solve3(jac, -res)
-        small = True
+        for i in range(3):
+            res[i] = -res[i]
+        _solve3(jac, res, delta)
+        clamped = False
+        norm = 0.0
         for i in range(3):
             if not math.isfinite(delta[i]):
                 return False, x, w, math.inf
@@ -145,31 +153,30 @@ def _radau_step(
                     pass
                 elif ratio < 1.0 / _REL_FACTOR:
                     new_w = (vb[i] - old_rel / _REL_FACTOR) / gamma
-                    small = False
+                    clamped = True
                 elif ratio > _REL_FACTOR:
                     new_w = (vb[i] - old_rel * _REL_FACTOR) / gamma
-                    small = False
-            if abs(new_w - wst[i]) > 0.03 * (atol_w + rtol * abs(new_w)):
-                small = False
+                    clamped = True
+            norm = max(norm, abs(new_w - wst[i]) / (atol_w + rtol * abs(new_w)))
             wst[i] = new_w
-        if small:
-            converged = True
-            break
+        # Stop when the remaining error, estimated from the contraction rate θ of successive
+        # increments (Hairer & Wanner IV.8), is a small fraction of the tolerance.
+        if not clamped:
+            theta = norm / norm_old
+            remaining = norm * theta / (1.0 - theta) if theta < 1.0 else norm
+            if norm <= _NEWTON_TOL or remaining <= _NEWTON_TOL:
+                converged = True
+                break
+        norm_old = norm if not clamped else math.inf
     if not converged:
         return False, x, w, math.inf
-    zx = np.empty(3)
-    zw = np.empty(3)
     for i in range(3):
         zx[i] = h * (aa[i, 0] * wst[0] + aa[i, 1] * wst[1] + aa[i, 2] * wst[2])
         zw[i] = wst[i] - w
     x_new = x + zx[2]
     w_new = wst[2]
     # Embedded error estimate: (MU_REAL/h I − J)^-1 (f(y_n) + Z^T E / h).
-    mu0, dmu0 = mu_and_slope(vb0 + slope_vb * (t - t0) - gamma * w, fp)
-    if not math.isfinite(dmu0):
-        dmu0 = 1e300
     f_x = w
-    f_w = (normal * mu0 - damp * w - stiff * x) / mass
     j_wx = -stiff / mass
     j_ww = (-gamma * normal * dmu0 - damp) / mass
     r_x = f_x + (ee[0] * zx[0] + ee[1] * zx[1] + ee[2] * zx[2]) / h
@@ -207,6 +214,8 @@ def _advance(
     """Advance over len(band) samples; state = [t, x, ẋ, v_band, h, substeps] is updated in place."""
     t, x, w, vb_prev, h = state[0], state[1], state[2], state[3], state[4]
     substeps = state[5]
+    work = np.empty((8, 3))
+    jac = np.empty((3, 3))
     for k in range(band.size):
         t0 = t
         t_end = t0 + dt
@@ -216,7 +225,8 @@ def _advance(
             last = h >= remaining * (1.0 - 1e-12)
             step = remaining if last else h
             accepted, x_new, w_new, err = _radau_step(
-                x, w, t, step, t0, dt, vb_prev, vb_next, rig, fp, rtol, atol_x, atol_w, aa, a2, cc, ee
+                x, w, t, step, t0, dt, vb_prev, vb_next, rig, fp, rtol, atol_x, atol_w, aa, a2, cc, ee,
+                work, jac,
             )
             if math.isfinite(err):
                 factor = 0.9 * err ** (-0.25) if err > 0.0 else _MAX_FACTOR
