@@ -33,11 +33,16 @@ def numpy_friction(v: float, p: FrictionParameters) -> float:
     tau = p.reference_activation_time * (v / p.reference_velocity) ** p.activation_exponent
     phi = lifetime / (lifetime + tau)
     eta = p.reference_viscosity * (v / p.reference_velocity) ** p.shear_thinning_exponent
-    sigma = p.shear_modulus * phi * stretch / p.interface_thickness + (1 - phi) * eta * v / p.interpenetration_thickness
+    sigma = (
+        p.shear_modulus * phi * stretch / p.interface_thickness
+        + (1 - phi) * eta * v / p.interpenetration_thickness
+    )
     return float(sign * p.contact_area / p.normal_force * sigma)
 
 
-def scipy_run(rig: RigParameters, t_s: np.ndarray, v_s: np.ndarray, x0: float, method: str, rtol: float, jac: bool):
+def scipy_run(
+    rig: RigParameters, t_s: np.ndarray, v_s: np.ndarray, x0: float, method: str, rtol: float, jac: bool
+):
     m, c, k, gamma = rig.mass, rig.damping, rig.stiffness, rig.velocity_factor
     normal = rig.friction.normal_force
     p = rig.friction
@@ -55,7 +60,9 @@ def scipy_run(rig: RigParameters, t_s: np.ndarray, v_s: np.ndarray, x0: float, m
     atol = [rtol * scale, rtol * scale * rig.angular_frequency]
     options = {"jac": jacobian} if jac else {}
     started = time.perf_counter()
-    sol = solve_ivp(rhs, (t_s[0], t_s[-1]), [x0, 0.0], method=method, t_eval=t_s, rtol=rtol, atol=atol, **options)
+    sol = solve_ivp(
+        rhs, (t_s[0], t_s[-1]), [x0, 0.0], method=method, t_eval=t_s, rtol=rtol, atol=atol, **options
+    )
     elapsed = time.perf_counter() - started
     if not sol.success:
         raise RuntimeError(sol.message)
@@ -68,8 +75,11 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--convention", choices=("paper", "physical"), default="paper")
     parser.add_argument("--lsoda-rtol", type=float, default=1e-8)
+    parser.add_argument("--rtol", type=float, default=1e-8, help="lubrig integrator tolerance")
     args = parser.parse_args()
-    config = load_case(args.case).with_overrides(duration=args.duration, convention=args.convention)
+    config = load_case(args.case).with_overrides(
+        duration=args.duration, convention=args.convention, rtol=args.rtol
+    )
     integ = integrator_for(config)
     x0 = integ.equilibrium_displacement * (1 + config.initial_perturbation)
     t_s = np.arange(config.samples + 1) / config.sample_rate
@@ -83,7 +93,9 @@ def main() -> None:
     ours_time = (time.perf_counter() - started) / repeats
 
     stiff = args.convention == "physical"
-    x_ref, ref_time, _ = scipy_run(config.rig, t_s, v_s, x0, "Radau" if stiff else "DOP853", 1e-11 if stiff else 1e-13, jac=stiff)
+    x_ref, ref_time, _ = scipy_run(
+        config.rig, t_s, v_s, x0, "Radau" if stiff else "DOP853", 1e-11 if stiff else 1e-13, jac=stiff
+    )
     x_lsoda, lsoda_time, nfev = scipy_run(config.rig, t_s, v_s, x0, "LSODA", args.lsoda_rtol, jac=False)
 
     span = np.ptp(x_ref)
@@ -91,10 +103,13 @@ def main() -> None:
     err_lsoda = np.max(np.abs(x_lsoda - x_ref)) / span
     print(f"case {args.case}, {args.convention} convention, {args.duration:g} s of rig time at 1 kHz output")
     print(f"  reference ({'Radau rtol 1e-11' if stiff else 'DOP853 rtol 1e-13'}): {ref_time:.2f} s")
-    print(f"  lubrig Radau IIA (numba, rtol {config.rtol:g}): {ours_time * 1e3:8.2f} ms   max error / ptp(x) = {err_ours:.2e}")
-    print(f"  scipy LSODA (numpy law, rtol {args.lsoda_rtol:g}):  {lsoda_time * 1e3:8.2f} ms   max error / ptp(x) = {err_lsoda:.2e}   ({nfev} rhs calls)")
+    ours_label = f"lubrig Radau IIA (numba, rtol {config.rtol:g})"
+    lsoda_label = f"scipy LSODA (numpy law, rtol {args.lsoda_rtol:g})"
+    print(f"  {ours_label:42s} {ours_time * 1e3:8.2f} ms   max error / ptp(x) = {err_ours:.2e}")
+    print(f"  {lsoda_label:42s} {lsoda_time * 1e3:8.2f} ms   max error / ptp(x) = {err_lsoda:.2e}  ({nfev} rhs)")
     print(f"  cost ratio lubrig / LSODA = 1/{lsoda_time / ours_time:.1f}  (goal: at most 1/20)")
-    print(f"  accuracy: lubrig {'at least as accurate' if err_ours <= err_lsoda else 'LESS accurate'} than LSODA")
+    verdict = "at least as accurate as" if err_ours <= err_lsoda else "LESS accurate than"
+    print(f"  accuracy: lubrig {verdict} LSODA")
 
 
 if __name__ == "__main__":
