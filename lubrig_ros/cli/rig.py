@@ -1,9 +1,11 @@
 """`lubrig rig`: start the node processes for one run, wait for it, stop them, report.
 
-Starts belt_drive, plant, analysis (and the recorder with --bag DIR once
-lubrig_ros/nodes/recorder.py exists) on the current ROS_DOMAIN_ID, waits until the plant
-reports the run complete (sim) or the wall duration has passed (realtime), then stops every
-process with SIGINT (then SIGTERM after a grace period).
+Starts the recorder (`recorder -o DIR/bag --config DIR/run_config.yaml [--use-sim-time]`, sim
+mode logs rig time) and waits until it is subscribed, then belt_drive, plant and analysis on the
+current ROS_DOMAIN_ID; waits until the plant reports the run complete (sim) or the wall duration
+has passed (realtime), stops the nodes and then the recorder with SIGINT (SIGTERM after a grace
+period) so that the bag is finalized, and finally writes the report of the bag into DIR/report
+(`--no-report` skips it) and prints its location.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from .main import CommandError
 
 NODES = ("plant", "belt_drive", "analysis")
 GRACE_S = 10.0
+RECORDER_READY_S = 60.0
 
 
 def _executable(name: str) -> str:
@@ -123,6 +126,37 @@ def stop_all(procs: dict[str, subprocess.Popen], grace: float = GRACE_S) -> dict
     return codes
 
 
+def recorder_command(bag_dir: Path, run_config: Path, mode: str) -> list[str]:
+    """The recorder's command line: rig time as log time in sim mode."""
+    argv = [_executable("recorder"), "-o", str(bag_dir), "--config", str(run_config)]
+    return argv + (["--use-sim-time"] if mode == "sim" else [])
+
+
+def _set_aside(bag_dir: Path) -> None:
+    """Keep the previous recording of this DIR as bag.previous (the recorder needs a new path)."""
+    if not bag_dir.exists():
+        return
+    previous = bag_dir.with_name(bag_dir.name + ".previous")
+    if previous.exists():
+        shutil.rmtree(previous)
+    bag_dir.rename(previous)
+    print(f"lubrig rig: previous bag moved to {previous}")
+
+
+def _wait_recorder(proc: subprocess.Popen, log: Path, limit: float = RECORDER_READY_S) -> None:
+    """Wait until the recorder has subscribed (prints "recorder: recording")."""
+    end = time.monotonic() + limit
+    while time.monotonic() < end:
+        if "recorder: recording" in log.read_text(errors="replace"):
+            return
+        if proc.poll() is not None:
+            lines = log.read_text(errors="replace").strip().splitlines()
+            last = lines[-1] if lines else "no output"
+            raise CommandError(f"recorder exited with status {proc.returncode}: {last}")
+        time.sleep(0.05)
+    raise CommandError(f"recorder not ready after {limit:g} s; see {log}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Start, wait, stop, report."""
     config, params = select_config(args)
@@ -147,16 +181,18 @@ def run(args: argparse.Namespace) -> int:
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
     with_recorder = recorder_available() and not args.no_recorder
     if with_recorder:
-        per_node["belt_drive"]["start_delay"] = 1.5  # the recorder must be subscribed first
+        per_node["belt_drive"]["start_delay"] = 1.5  # the nodes must discover the recorder
+        _set_aside(bag / "bag")
     try:
         if with_recorder:
             with open(logs / "recorder.log", "w") as log:
                 procs["recorder"] = subprocess.Popen(
-                    [_executable("recorder"), "--bag", str(bag / "bag")],
+                    recorder_command(bag / "bag", bag / "run_config.yaml", mode),
                     env=env,
                     stdout=log,
                     stderr=subprocess.STDOUT,
                 )
+            _wait_recorder(procs["recorder"], logs / "recorder.log")
         for name in NODES:
             with open(logs / f"{name}.log", "w") as log:
                 procs[name] = subprocess.Popen(
@@ -199,6 +235,11 @@ def run(args: argparse.Namespace) -> int:
         print("  (no recorder node installed yet: nothing recorded)")
     if bad:
         raise CommandError(f"node(s) exited with errors {bad}; see {logs}")
+    if with_recorder and not args.no_report and not math.isnan(wall):
+        from ..report import write_report
+
+        page = write_report(bag / "bag", bag / "report")
+        print(f"report: {page}")
     return 0
 
 
@@ -229,4 +270,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--bag", required=True, metavar="DIR", help="output directory")
     parser.add_argument("--timeout", type=_positive, metavar="S", help="sim: wall-time limit")
     parser.add_argument("--no-recorder", action="store_true", help="do not start the recorder")
+    parser.add_argument("--no-report", action="store_true", help="do not write DIR/report")
     parser.set_defaults(func=run)

@@ -1,0 +1,30 @@
+"""`lubrig report BAG --out DIR`: figures, summary.json and report.md of a recorded run."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..report import write_report
+
+
+def run(args: argparse.Namespace) -> int:
+    """Entry of `lubrig report`."""
+    bag = Path(args.bag)
+    out = Path(args.out) if args.out else bag.parent / "report"
+    page = write_report(bag, out)
+    print(f"report: {page}")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add `lubrig report`."""
+    parser = subparsers.add_parser(
+        "report",
+        help="report of a recorded bag (wavelet, time history, phase, friction figures)",
+        description="Rebuild the run from a bag written by the recorder and write study-style "
+        "figures, summary.json and report.md to --out.",
+    )
+    parser.add_argument("bag", metavar="BAG", help="bag directory written by the recorder")
+    parser.add_argument("--out", metavar="DIR", help="output directory (default: BAG/../report)")
+    parser.set_defaults(func=run)
