@@ -41,6 +41,9 @@ def _executable(name: str) -> str:
     return found
 
 
+RECORDER_NODE_PREFIX = "lubrig_recorder"  # the recorder's worker nodes: lubrig_recorder_w<i>_<pid>
+
+
 def recorder_available() -> bool:
     """True once the recorder node module exists."""
     return importlib.util.find_spec("lubrig_ros.nodes.recorder") is not None
@@ -181,7 +184,12 @@ def run(args: argparse.Namespace) -> int:
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
     with_recorder = recorder_available() and not args.no_recorder
     if with_recorder:
-        per_node["belt_drive"]["start_delay"] = 1.5  # the nodes must discover the recorder
+        # sim: nothing flows before the recorder has subscribed to every output (no lost sample)
+        if mode == "sim":
+            per_node["plant"]["wait_for_subscriber"] = RECORDER_NODE_PREFIX
+            per_node["belt_drive"]["wait_for_subscriber"] = RECORDER_NODE_PREFIX
+        else:
+            per_node["belt_drive"]["start_delay"] = 1.5  # let the nodes discover the recorder
         _set_aside(bag / "bag")
     try:
         if with_recorder:

@@ -1,8 +1,8 @@
 """Friction law μ(v) of the boundary-lubricated interface and its analytic slope dμ/dv.
 
 The law combines bonded junctions (elastic stress, stretched until thermal break or yield) and
-free junctions (shear-thinning viscous stress); see docs/model.md. The scalar kernels are compiled
-with numba so that the integrator can call them; the public functions are vectorized over numpy
+free junctions (shear-thinning viscous stress); see docs/model.md. The scalar kernel is compiled
+with numba (kernels.py) so that the integrator can call it; the public functions are vectorized over numpy
 arrays. Evaluation is stable over 1e-15 … 1e-2 m/s: the small-u cancellations are replaced by
 series, and large u only underflows exp(−u) to zero.
 """
@@ -13,89 +13,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 from scipy.optimize import brentq
 
+from .kernels import _mu_and_slope_array, mu_and_slope
 from .params import FrictionParameters
-
-# Below this u = v0/v the closed forms cancel catastrophically: use series instead.
-_SERIES_U = 0.1
-
-
-@njit(cache=True)
-def _bernoulli_ratio(u: float) -> float:
-    """B(u) = u / (e^u − 1), B(0) = 1."""
-    if u < _SERIES_U:
-        u2 = u * u
-        return 1.0 - 0.5 * u + u2 / 12.0 - u2 * u2 / 720.0 + u2 * u2 * u2 / 30240.0
-    e = math.exp(-u)
-    return u * e / (-math.expm1(-u))
-
-
-@njit(cache=True)
-def _stretch_ratio(u: float) -> float:
-    """r(u) = [1 − (1+u)e^−u] / (1 − e^−u) = 1 − B(u); s = v τ0 r(u)."""
-    if u < _SERIES_U:
-        u2 = u * u
-        return u / 2.0 - u2 / 12.0 + u2 * u2 / 720.0 - u2 * u2 * u2 / 30240.0
-    return 1.0 - _bernoulli_ratio(u)
-
-
-@njit(cache=True)
-def _stretch_slope_ratio(u: float) -> float:
-    """q(u) = ds/dv / τ0 = 1 − u² e^−u / (1 − e^−u)²."""
-    if u < _SERIES_U:
-        u2 = u * u
-        u4 = u2 * u2
-        return u2 / 12.0 - u4 / 240.0 + u4 * u2 / 6048.0 - u4 * u4 / 172800.0
-    e = math.exp(-u)
-    m = -math.expm1(-u)
-    return 1.0 - u * u * e / (m * m)
-
-
-@njit(cache=True)
-def mu_and_slope(v: float, p: np.ndarray) -> tuple[float, float]:
-    """μ(v) and dμ/dv for one velocity; p is FrictionParameters.as_array() as float64 array.
-
-    μ is odd and dμ/dv even; at v = 0 the slope is +inf (μ ∝ |v|^(1+k2) there).
-    """
-    if v == 0.0:
-        return 0.0, math.inf
-    sign = 1.0
-    if v < 0.0:
-        sign = -1.0
-        v = -v
-    g_mod, thick, d_pen, l_star, tau0 = p[0], p[1], p[2], p[3], p[4]
-    tau_ref, v_ref, k1, eta_ref, k2 = p[5], p[6], p[7], p[8], p[9]
-    area, normal = p[10], p[11]
-    u = (l_star / tau0) / v
-    lifetime = tau0 * (-math.expm1(-u))  # <t_b>
-    stretch = v * tau0 * _stretch_ratio(u)  # s(v)
-    log_ratio = math.log(v / v_ref)  # one log, two exp: cheaper than two powers
-    tau = tau_ref * math.exp(k1 * log_ratio)  # τ(v)
-    phi = lifetime / (lifetime + tau)  # bonded fraction
-    eta = eta_ref * math.exp(k2 * log_ratio)
-    scale = area / normal
-    elastic = g_mod / thick
-    mu = scale * (elastic * phi * stretch + (1.0 - phi) * eta * v / d_pen)
-    dphi = phi * (1.0 - phi) * (-_bernoulli_ratio(u) - k1) / v
-    dstretch = tau0 * _stretch_slope_ratio(u)
-    dmu = scale * (
-        elastic * (dphi * stretch + phi * dstretch)
-        + (1.0 + k2) * (1.0 - phi) * eta / d_pen
-        - dphi * eta * v / d_pen
-    )
-    return sign * mu, dmu
-
-
-@njit(cache=True)
-def _mu_and_slope_array(v: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    mu = np.empty(v.size)
-    dmu = np.empty(v.size)
-    flat = v.ravel()
-    for i in range(flat.size):
-        mu[i], dmu[i] = mu_and_slope(flat[i], p)
-    return mu, dmu
 
 
 def _params_array(params: FrictionParameters | None) -> np.ndarray:

@@ -86,6 +86,7 @@ class BeltDrive(Node):
                 "start_delay", 0.5, common.descriptor("s of wall time to wait once the plant is seen")
             ).value
         )
+        self.wait_for_subscriber = common.declare_wait_for_subscriber(self)
         # profile.* defaults come from the selected configuration's band section.
         band = profile_to_dict(config.band)
         self.declare_parameter(
@@ -184,8 +185,10 @@ class BeltDrive(Node):
         if (
             time.monotonic() - self.seen_at < self.start_delay
             or self.publisher.get_subscription_count() == 0
+            or not common.subscribed_by(self, [self.publisher.topic_name], self.wait_for_subscriber)
         ):
             return
+        self.wait_for_subscriber = ""  # seen once: no need to ask the graph again
         limit = min(self.total, self.plant_k + self.flow_window)
         msg = Float64()
         while self.next_k <= limit:

@@ -134,6 +134,31 @@ def declare_run_selection(node: Node) -> RunConfig:
     return default_config()
 
 
+def declare_wait_for_subscriber(node: Node) -> str:
+    """Parameter `wait_for_subscriber`: node-name prefix that must subscribe before sim data flows."""
+    return str(
+        node.declare_parameter(
+            "wait_for_subscriber",
+            "",
+            descriptor(
+                "sim: hold the run until a node whose name starts with this (e.g. the recorder, "
+                "'lubrig_recorder') subscribes to every output topic; empty = do not wait",
+                read_only=True,
+            ),
+        ).value
+    )
+
+
+def subscribed_by(node: Node, topics: Iterable[str], prefix: str) -> bool:
+    """True when every topic has a discovered subscription from a node named prefix*."""
+    if not prefix:
+        return True
+    return all(
+        any(info.node_name.startswith(prefix) for info in node.get_subscriptions_info_by_topic(t))
+        for t in topics
+    )
+
+
 def finite(value: float) -> bool:
     """True for a finite float."""
     return isinstance(value, float | int) and math.isfinite(value)

@@ -89,6 +89,7 @@ class Plant(Node):
         self.stale_timeout = float(
             self.declare_parameter("stale_timeout", 0.05, d("s without good band input = stale")).value
         )
+        self.wait_for_subscriber = common.declare_wait_for_subscriber(self)
         self.diagnostics_period = float(
             self.declare_parameter(
                 "diagnostics_period", 1.0, d("s between /diagnostics", read_only=True)
@@ -286,7 +287,15 @@ class Plant(Node):
                     self.get_logger().info(f"sim: run complete at t = {self.integrator.time:g} s")
 
     def _heartbeat(self) -> None:
-        """Sim: republish /clock so that a late belt_drive sees where the plant is."""
+        """Sim: republish /clock so that a late belt_drive sees where the plant is.
+
+        Until the awaited subscriber (the recorder) has subscribed to every output, the plant stays
+        silent, so belt_drive does not start and no sample is published before it is recorded.
+        """
+        outputs = (self.pub_x, self.pub_v, self.pub_mu, self.pub_state, self.pub_clock)
+        if not common.subscribed_by(self, [p.topic_name for p in outputs], self.wait_for_subscriber):
+            return
+        self.wait_for_subscriber = ""  # seen once: no need to ask the graph again
         t = self.integrator.time
         clock = Clock()
         clock.clock.sec, clock.clock.nanosec = _stamp(t)
