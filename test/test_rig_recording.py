@@ -54,6 +54,8 @@ def test_rig_records_and_reports_case1(tmp_path: Path) -> None:
         assert by_rosbags[topic] == 2001, (topic, by_rosbags)
     assert by_rosbags["/lubrig/band_velocity"] == 2000  # samples 1..N (sample 0 is the start state)
     assert by_rosbags["/lubrig/run_config"] == 1
+    with Reader(bag) as reader:  # log times are rig time: the bag spans the 2 s run
+        assert reader.start_time >= 0 and reader.end_time <= 2.5e9, (reader.start_time, reader.end_time)
     # the report: page, figures with content
     text = report.read_text()
     for name in ("wavelet.png", "time_history.png", "phase.png", "friction_velocity.png"):

@@ -123,6 +123,9 @@ class _Topic:
     is_clock: bool
 
 
+CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
+
+
 class SimClock:
     """Maps receive times to rig time from the stream of /clock messages."""
 
@@ -161,8 +164,15 @@ class Recorder:
         config_spec = documented_topics(namespace)[resolve("run_config", namespace)]
         if run_config is not None:  # the given configuration is written, not subscribed
             specs = [s for s in specs if s.name != config_spec.name]
+        # In sim mode only the plant's state and /clock carry rig time in their stamps; other
+        # headers (diagnostics) may hold wall time, so they are placed by the /clock stream.
+        rig_stamped = {resolve("state", namespace)}
         self.topics = [
-            _Topic(s, has_leading_stamp(s.msgtype), s.msgtype == "rosgraph_msgs/msg/Clock")
+            _Topic(
+                s,
+                has_leading_stamp(s.msgtype) and (s.name in rig_stamped or s.msgtype == CLOCK_TYPE),
+                s.msgtype == CLOCK_TYPE,
+            )
             for s in specs
         ]
         self.use_sim_time = use_sim_time
@@ -220,7 +230,7 @@ class Recorder:
                 return stamp
         t = self.clock.lookup(recv, force)
         if t is None and force:
-            return recv  # no /clock at all: fall back to receive time
+            return 0  # before the first /clock the rig is at t = 0 (e.g. the latched run_config)
         return t
 
     def _write(self, topic: _Topic, t: int, data: bytes) -> None:
@@ -243,7 +253,8 @@ class Recorder:
             for idx, recv, data in batch:
                 topic = self.topics[self.index_map[idx]]
                 if topic.is_clock:
-                    self._write(topic, self._log_time(topic, recv, data, True) or recv, data)
+                    t = self._log_time(topic, recv, data, True)
+                    self._write(topic, recv if t is None else t, data)  # t = 0 is a valid rig time
             batch = [m for m in batch if not self.topics[self.index_map[m[0]]].is_clock]
             pending, self.held = self.held + batch, []
             now = time.time_ns()
