@@ -14,8 +14,10 @@ $(STAMP): requirements.txt setup.py
 
 setup: $(STAMP)
 
+# The main job: the node suite (belt_drive, plant, analysis, recorder) on study case 1 in simulated
+# time, recorded to runs/latest/bag, then the report; the last line printed is the report's path.
 run: setup
-	$(VENV)/bin/lubrig simulate --case 1 --duration 10 --out runs/case1
+	$(VENV)/bin/lubrig rig --case 1 --duration 10 --bag runs/latest
 
 test: setup
 	$(PY) -m pytest -q test
@@ -23,5 +25,10 @@ test: setup
 lint: setup
 	$(VENV)/bin/ruff check lubrig_ros test bench
 
+# Benchmarks print their figures (docs/benchmarks.md records them with these commands).
 bench: setup
-	$(PY) bench/run_all.py
+	$(PY) bench/bench_integrator.py
+	$(PY) bench/bench_online_wavelet.py
+	$(PY) bench/bench_recorder.py --seconds 10 --rate 1000
+	$(PY) bench/bench_sweep.py --points 16 --duration 20 --workers 1 2
+	$(PY) bench/bench_realtime.py --duration 60
