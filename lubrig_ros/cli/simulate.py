@@ -110,7 +110,7 @@ def add_run_selection(parser: argparse.ArgumentParser) -> None:
     band.add_argument("--band-velocity", metavar="V", help="constant band velocity, m/s")
     band.add_argument("--cycle", nargs=4, metavar=("V1", "V2", "TC", "TRAMP"), help="study band cycle")
     band.add_argument("--profile", metavar="CSV", help="table of time_s,band_velocity_m_s (piecewise linear)")
-    parser.add_argument("--convention", choices=("physical", "paper"), help="relative-velocity convention")
+    parser.add_argument("--convention", metavar="C", help="relative-velocity convention: physical | paper")
     parser.add_argument("--zeta", metavar="Z", help="damping ratio ζ")
     parser.add_argument("--mass", metavar="KG", help="mass m, kg")
     parser.add_argument("--natural-frequency", metavar="HZ", help="natural frequency f0, Hz")
