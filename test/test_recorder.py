@@ -36,6 +36,20 @@ def _record(tmp_path: Path, samples: int, extra: tuple[str, ...] = ()):
     return rec, bag, cfg, published
 
 
+def _wait_until_quiet(bag: Path, quiet: float, timeout: float) -> None:
+    """Wait until the bag's .mcap has not grown for `quiet` seconds."""
+    end = time.monotonic() + timeout
+    last_size, last_change = -1, time.monotonic()
+    while time.monotonic() < end:
+        size = sum(p.stat().st_size for p in bag.glob("*.mcap"))
+        if size != last_size:
+            last_size, last_change = size, time.monotonic()
+        elif time.monotonic() - last_change > quiet:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"bag still growing after {timeout} s")
+
+
 def _expect_all(bag: Path, published: dict[str, int]) -> None:
     for reader in (read_rosbags, read_mcap):
         values = reader(bag)
@@ -66,7 +80,9 @@ def test_sigkill_then_repair_keeps_flushed_messages(tmp_path: Path) -> None:
     rec, bag, _cfg, published = _record(tmp_path, 2000, ("--flush-interval", "0.3"))
     with rec:
         rec.wait_for_output("recording")
-        time.sleep(1.5)  # > flush interval: every received message is in a flushed chunk
+        # every message received and flushed once the file stops growing for > 3 flush intervals
+        # (a fixed sleep was too short on a loaded machine: the recorder may lag the publisher)
+        _wait_until_quiet(bag, quiet=1.0, timeout=30.0)
         rec.kill()
     assert not (bag / "metadata.yaml").exists()
     report = repair_bag(bag)
