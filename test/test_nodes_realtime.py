@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
@@ -85,3 +89,14 @@ def test_realtime_rates_parameters_services_analysis(tmp_path):
         codes = procs.stop()
         probe.close()
     assert all(code == 0 for code in codes.values()), codes
+
+
+def test_invalid_realtime_priority_is_refused_at_start():
+    env = dict(os.environ, ROS_DOMAIN_ID=str(new_domain()), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    res = subprocess.run(
+        [str(Path(sys.executable).parent / "plant"), "--ros-args", "-p", "mode:=realtime",
+         "-p", "realtime_priority:=150"],
+        capture_output=True, text=True, timeout=60, env=env, check=False,
+    )
+    assert res.returncode == 2
+    assert "realtime_priority=150 is not valid; expected 0..99" in res.stdout + res.stderr

@@ -87,6 +87,7 @@ class BeltDrive(Node):
             ).value
         )
         self.wait_for_subscriber = common.declare_wait_for_subscriber(self)
+        self.realtime_priority = common.declare_realtime_priority(self)
         # profile.* defaults come from the selected configuration's band section.
         band = profile_to_dict(config.band)
         self.declare_parameter(
@@ -118,6 +119,7 @@ class BeltDrive(Node):
             self.create_subscription(Clock, common.CLOCK, self._on_clock, common.STREAM_QOS)
             self.create_timer(0.05, self._pump)
         else:
+            common.enter_realtime(self.realtime_priority, self)
             self._thread = threading.Thread(target=self._realtime_loop, daemon=True)
             self._thread.start()
         self.get_logger().info(

@@ -6,7 +6,9 @@ parameter (default /lubrig), except /clock and /diagnostics.
 
 from __future__ import annotations
 
+import gc
 import math
+import os
 import time
 from collections.abc import Callable, Iterable
 from typing import Any
@@ -45,6 +47,7 @@ DIAGNOSTICS = "/diagnostics"
 MODES = ("sim", "realtime", "rig_in_loop")
 #: Largest |band velocity| the plant accepts from the band topic, m/s (rig in the loop).
 BAND_VELOCITY_LIMIT = 1e-2
+DEFAULT_REALTIME_PRIORITY = 50
 
 #: Sample streams (band, plant outputs, /clock): reliable, deep queue, volatile.
 STREAM_QOS = QoSProfile(
@@ -147,6 +150,45 @@ def declare_wait_for_subscriber(node: Node) -> str:
             ),
         ).value
     )
+
+
+def declare_realtime_priority(node: Node) -> int:
+    """Parameter `realtime_priority`: SCHED_FIFO priority of the real-time loop thread (0 = off)."""
+    value = int(
+        node.declare_parameter(
+            "realtime_priority",
+            DEFAULT_REALTIME_PRIORITY,
+            descriptor(
+                "realtime: SCHED_FIFO priority 1..99 of the loop thread so other processes cannot "
+                "delay its ticks; 0 keeps normal scheduling",
+                read_only=True,
+            ),
+        ).value
+    )
+    if not 0 <= value <= 99:
+        raise ParameterError(f"realtime_priority={value!r} is not valid; expected 0..99")
+    return value
+
+
+def enter_realtime(priority: int, node: Node) -> None:
+    """Put every thread of this process under SCHED_FIFO; without the privilege, warn and go on.
+
+    All threads, not only the loop: the loop needs the GIL, and a normal-priority thread that
+    holds it while preempted by another process would delay the loop by a whole time slice
+    (priority inversion; measured up to 18 ms late ticks). Threads started later inherit it.
+    """
+    if priority <= 0:
+        return
+    try:
+        for tid in os.listdir("/proc/self/task"):
+            os.sched_setscheduler(int(tid), os.SCHED_FIFO, os.sched_param(priority))
+    except (PermissionError, OSError, AttributeError) as exc:
+        node.get_logger().warning(
+            f"realtime_priority={priority}: SCHED_FIFO not available ({exc}); ticks may be late "
+            "under load (grant CAP_SYS_NICE or an rtprio limit, or set realtime_priority:=0)"
+        )
+        return
+    gc.freeze()  # objects made so far are never scanned again: shorter collector pauses
 
 
 def subscribed_by(node: Node, topics: Iterable[str], prefix: str) -> bool:

@@ -90,6 +90,7 @@ class Plant(Node):
             self.declare_parameter("stale_timeout", 0.05, d("s without good band input = stale")).value
         )
         self.wait_for_subscriber = common.declare_wait_for_subscriber(self)
+        self.realtime_priority = common.declare_realtime_priority(self)
         self.diagnostics_period = float(
             self.declare_parameter(
                 "diagnostics_period", 1.0, d("s between /diagnostics", read_only=True)
@@ -161,6 +162,7 @@ class Plant(Node):
             self.create_timer(0.2, self._heartbeat)
         else:
             sys.setswitchinterval(2e-4)  # let the loop thread take the GIL promptly
+            common.enter_realtime(self.realtime_priority, self)
             self._thread = threading.Thread(target=self._realtime_loop, daemon=True)
             self._thread.start()
         self.get_logger().info(
