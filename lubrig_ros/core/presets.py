@@ -101,13 +101,18 @@ def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     return merged
 
 
-def _read_yaml(path: Path) -> dict[str, Any]:
+def read_yaml(path: Path, what: str = "config file", error: type[Exception] = ParameterError) -> Any:
+    """Parse a YAML file; an unreadable or malformed file raises `error` naming the file."""
     try:
-        data = yaml.safe_load(path.read_text())
+        return yaml.safe_load(path.read_text())
     except OSError as exc:
-        raise ParameterError(f"config file {str(path)!r} cannot be read: {exc.strerror}") from None
+        raise error(f"{what} {str(path)!r} cannot be read: {exc.strerror}") from None
     except yaml.YAMLError as exc:
-        raise ParameterError(f"config file {str(path)!r} is not valid YAML: {exc}") from None
+        raise error(f"{what} {str(path)!r} is not valid YAML: {exc}") from None
+
+
+def _read_yaml(path: Path) -> dict[str, Any]:
+    data = read_yaml(path)
     if data is None:
         return {}
     if not isinstance(data, dict):

@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from ..core.params import ParameterError
-from ..core.presets import RunConfig, from_mapping, load_case
+from ..core.presets import RunConfig, from_mapping, load_case, read_yaml
 
 SPEC_KEYS = ("name", "description", "base", "base_case", "design", "samples", "seed", "wavelet", "axes")
 DESIGNS = ("grid", "random", "lhs")
@@ -330,12 +330,7 @@ def parse_spec(data: Any, base_dir: Path | None = None) -> SweepSpec:
 def load_spec(path: str | Path) -> SweepSpec:
     """Read and validate a sweep spec YAML file."""
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise SpecError(f"sweep spec {str(path)!r} cannot be read: {exc.strerror}") from None
-    except yaml.YAMLError as exc:
-        raise SpecError(f"sweep spec {str(path)!r} is not valid YAML: {exc}") from None
+    data = read_yaml(path, "sweep spec", SpecError)
     try:
         return parse_spec(data, base_dir=path.parent)
     except SpecError as exc:
