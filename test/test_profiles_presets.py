@@ -90,7 +90,7 @@ def test_config_merging_and_errors(tmp_path):
         from_mapping({"rig": {"massive": 1}})
     with pytest.raises(ParameterError, match="unknown config section"):
         from_mapping({"rigg": {}})
-    with pytest.raises(ParameterError, match="rtol=1.0"):
+    with pytest.raises(ParameterError, match=r"rtol=1\.0"):
         from_mapping({"simulation": {"rtol": 1.0}})
     printed = from_mapping({"rig": {"friction": {"contact_area": "printed"}}})
     assert printed.rig.friction.contact_area == 28.3e-12
