@@ -83,7 +83,8 @@ def dask_cluster(tmp_path, n_workers, scheduler_env=None):
                 cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         procs.extend(workers)
         client = Client(address, timeout="30s")
-        client.wait_for_workers(n_workers, timeout=90)
+        if n_workers:
+            client.wait_for_workers(n_workers, timeout=90)
         pids = client.run(os.getpid)
         by_pid = {proc.pid: proc for proc in workers}
         assert set(pids.values()) == set(by_pid), "the workers are the processes started here"
@@ -237,3 +238,16 @@ def test_killed_worker_error_is_recorded_then_retried(tmp_path):
     assert all(pid_of(retried[r["point_id"]]) == survivor for r in failed)
     expected = serial_table(spec_path, tmp_path / "serial")
     assert comparable(table).equals(comparable(expected))
+
+
+def test_scheduler_without_workers_fails_in_one_line(tmp_path):
+    spec_path = sweep_spec(tmp_path, "lonely", 1.0, 2)
+    with dask_cluster(tmp_path, 0) as (address, _client, _workers):
+        run = subprocess.run(
+            [str(LUBRIG), "sweep", str(spec_path), "--out", str(tmp_path / "out"), "--scheduler", address,
+             "--worker-timeout", "3", "--no-figures", "--quiet"],
+            capture_output=True, text=True, timeout=60)
+    assert run.returncode == 2
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"no Dask worker joined {address} within 3 s" in lines[0], run.stderr
+    assert not list((tmp_path / "out").glob("points/*"))  # nothing computed

@@ -15,6 +15,7 @@ from typing import Any
 
 from ..sweep.engine import LOCAL, SERIAL, check_scheduler, run_sweep
 from ..sweep.spec import load_spec
+from .common import parse_finite
 
 
 def _workers(text: str | None) -> int | None:
@@ -29,6 +30,8 @@ def _workers(text: str | None) -> int | None:
 
 def _run(args: argparse.Namespace) -> int:
     workers = _workers(args.workers)
+    if parse_finite("--worker-timeout", args.worker_timeout, "seconds > 0") <= 0:
+        raise ValueError(f"--worker-timeout {args.worker_timeout!r} must be > 0 s")
     check_scheduler(args.scheduler, workers)
     spec = load_spec(args.spec)  # whole spec validated before DIR is touched
     result = run_sweep(
@@ -39,6 +42,7 @@ def _run(args: argparse.Namespace) -> int:
         retry_failed=args.retry_failed,
         figures=not args.no_figures,
         progress=None if args.quiet else sys.stderr,
+        worker_timeout=parse_finite("--worker-timeout", args.worker_timeout, "seconds > 0"),
     )
     print(
         f"sweep {spec.name}: {result.total} points ({result.resumed} resumed, {result.computed} computed, "
@@ -66,6 +70,12 @@ def register(subparsers: Any) -> None:
         "or a Dask scheduler address such as tcp://host:8786",
     )
     parser.add_argument("--workers", default=None, help="local worker processes (default: all cores)")
+    parser.add_argument(
+        "--worker-timeout",
+        default="60",
+        metavar="S",
+        help="remote scheduler: give up when no worker has joined after S seconds (default 60)",
+    )
     parser.add_argument(
         "--retry-failed", action="store_true", help="recompute points that failed before"
     )

@@ -112,6 +112,7 @@ def _dask(
     workers: int | None,
     warm: dict[str, float],
     ready: Callable[[], None],
+    worker_timeout: float = 60.0,
 ) -> Iterator[dict[str, Any]]:
     from distributed import Client, LocalCluster, as_completed
 
@@ -128,6 +129,14 @@ def _dask(
     else:
         client = Client(scheduler, timeout="30s")
     try:
+        if cluster is None:  # a remote scheduler may have no worker: fail instead of waiting forever
+            try:
+                client.wait_for_workers(1, timeout=worker_timeout)
+            except TimeoutError:
+                raise ValueError(
+                    f"no Dask worker joined {scheduler} within {worker_timeout:g} s; start one with "
+                    f"`dask worker {scheduler} --nthreads 1` (or raise --worker-timeout)"
+                ) from None
         warm.update(client.run(warm_up))
         ready()  # cluster up and kernels loaded: the progress estimate starts here
         futures = client.map(
@@ -164,6 +173,7 @@ def run_sweep(
     figures: bool = True,
     progress: TextIO | None = sys.stderr,
     on_record: Callable[[dict[str, Any]], None] | None = None,
+    worker_timeout: float = 60.0,
 ) -> SweepResult:
     """Compute every point of `spec` not already finished in `out`; write the table and maps."""
     check_scheduler(scheduler, workers)
@@ -187,7 +197,7 @@ def run_sweep(
             warm["serial"] = warm_up()
             records = _serial(pending)
         else:
-            records = _dask(pending, scheduler, workers, warm, bar.restart)
+            records = _dask(pending, scheduler, workers, warm, bar.restart, worker_timeout)
         for record in records:
             store.write(record, run_id)
             failed += record["status"] != "ok"
