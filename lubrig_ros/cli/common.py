@@ -6,6 +6,8 @@ import argparse
 import json
 import math
 import re
+import sys
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -34,3 +36,25 @@ def write_json(path: Path, data: dict[str, Any]) -> None:
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text(json.dumps(data, indent=2) + "\n")
     tmp.replace(path)
+
+
+def run_script(
+    prog: str,
+    build_parser: Callable[[], argparse.ArgumentParser],
+    run: Callable[[argparse.Namespace], int],
+    argv: Sequence[str] | None,
+    errors: tuple[type[BaseException], ...] = (ValueError, OSError),
+) -> int:
+    """Entry of a console script that takes plain options (ROS arguments after --ros-args ignored).
+
+    A user error becomes one line `prog: error: …` on stderr and exit status 2.
+    """
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    if "--ros-args" in args_list:
+        args_list = args_list[: args_list.index("--ros-args")]
+    args = build_parser().parse_args(args_list)
+    try:
+        return run(args)
+    except errors as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return 2

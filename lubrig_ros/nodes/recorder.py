@@ -37,6 +37,7 @@ from lubrig_ros.bag.contract import DEFAULT_NAMESPACE, TopicSpec, documented_top
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.repair import cdr_string
 from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, leading_stamp_ns, serialize_string
+from lubrig_ros.cli.common import run_script
 
 BATCH_PERIOD_S = 0.02
 SIM_HOLD_NS = 300_000_000  # wait this long for /clock before stamping an unstamped message
@@ -414,15 +415,7 @@ def run(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Console script `recorder` (ROS arguments after --ros-args are ignored)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if "--ros-args" in argv:
-        argv = argv[: argv.index("--ros-args")]
-    args = build_parser().parse_args(argv)
-    try:
-        return run(args)
-    except (ValueError, OSError, BagError) as exc:
-        print(f"recorder: error: {exc}", file=sys.stderr)
-        return 2
+    return run_script("recorder", build_parser, run, argv, (ValueError, OSError, BagError))
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ from pathlib import Path
 from lubrig_ros.bag.contract import DEFAULT_NAMESPACE, documented_topics, resolve
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.reader import check_bag, read_messages
+from lubrig_ros.cli.common import run_script
 
 
 def build_parser(prog: str = "replay") -> argparse.ArgumentParser:
@@ -126,15 +127,7 @@ def run(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Console script `replay` (ROS arguments after --ros-args are ignored)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if "--ros-args" in argv:
-        argv = argv[: argv.index("--ros-args")]
-    args = build_parser().parse_args(argv)
-    try:
-        return run(args)
-    except (ValueError, OSError, BagError) as exc:
-        print(f"replay: error: {exc}", file=sys.stderr)
-        return 2
+    return run_script("replay", build_parser, run, argv, (ValueError, OSError, BagError))
 
 
 if __name__ == "__main__":
