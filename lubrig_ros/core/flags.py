@@ -153,10 +153,13 @@ def evaluate_flags(
     defaults to STICK_FRACTION × |band_velocity|.
     """
     values: dict[str, Any] = {}
+    # A band at rest has no sliding equilibrium: no linear verdict and no default stick threshold.
+    moving = band_velocity is not None and math.isfinite(band_velocity) and band_velocity != 0.0
     if band_velocity is not None:
+        values["band_velocity_m_s"] = float(band_velocity)
+    if moving:
         verdict = linear_stability(abs(float(band_velocity)), rig)
         values.update(
-            band_velocity_m_s=float(band_velocity),
             zone=verdict.zone,
             zone_name=ZONE_NAMES[verdict.zone],
             linear_stable=verdict.stable,
@@ -184,7 +187,7 @@ def evaluate_flags(
         if dt is None:
             raise ValueError("dt is required with relative_velocity (sample interval in s)")
         threshold = stick_threshold_m_s
-        if threshold is None and band_velocity is not None:
+        if threshold is None and moving:
             threshold = STICK_FRACTION * abs(float(band_velocity))
         if threshold is not None:
             stats = detect_stick(relative_velocity, dt, threshold)

@@ -195,7 +195,7 @@ class Analysis(Node):
         self.vrel.append((self.band or 0.0) - self.gamma * v)
 
     def _tick(self) -> None:
-        if self.band is not None:
+        if self.band:  # a band at rest has no sliding equilibrium, hence no zone or ζ_crit
             verdict = linear_stability(abs(self.band), self.config.rig)
             self.pub_zone.publish(UInt8(data=int(verdict.zone)))
             if math.isfinite(verdict.critical_damping_ratio):
