@@ -200,7 +200,7 @@ class OnlineWaveletAnalyzer:
         x = self.window_samples()
         mean = float(x.mean())
         xc = x - mean
-        variance = float(np.dot(xc, xc) / xc.size)
+        variance = float(np.sum(xc * xc) / xc.size)  # as wavelet.cwt: independent of BLAS threads
         k = min(x_new.size, self.window)
         t_end = self.t0 + (self._count - 1) * self.dt
         times = t_end - self.dt * np.arange(k - 1, -1, -1)

@@ -152,10 +152,12 @@ def transform_coefficients(
 def lag1_autocorrelation(x: np.ndarray) -> float:
     """AR(1) coefficient α fitted to a demeaned series (Yule–Walker), clipped to [0, MAX_LAG1]."""
     x = np.asarray(x, dtype=float)
-    denom = float(np.dot(x, x))
+    # np.sum of products, not np.dot: BLAS splits long dot products over its threads, so np.dot's
+    # last bits depend on the BLAS thread count of the process (sweep workers vs. the driver)
+    denom = float(np.sum(x * x))
     if denom <= 0.0 or x.size < 2:
         return 0.0
-    alpha = float(np.dot(x[:-1], x[1:]) / denom)
+    alpha = float(np.sum(x[:-1] * x[1:]) / denom)
     return min(max(alpha, 0.0), MAX_LAG1)
 
 
@@ -253,7 +255,7 @@ def build_result(
 ) -> WaveletResult:
     """Assemble a WaveletResult from |W|² of the demeaned signal x (shared with online.py)."""
     n = x.size
-    variance = float(np.dot(x, x) / n)
+    variance = float(np.sum(x * x) / n)  # not np.dot: see lag1_autocorrelation
     periods = scales * fourier_factor()
     alpha = lag1_autocorrelation(x) if lag1 is None else float(lag1)
     power = raw_power / variance if variance > 0.0 else np.zeros_like(raw_power)
