@@ -286,3 +286,27 @@ def test_steady_sliding_has_no_dominant_frequency():
     assert record["status"] == "ok" and record["x_peak_to_peak"] == 0.0
     assert record["dominant_frequency_hz"] is None and record["wavelet_frequency_hz"] is None
     assert "constant in the window" in record["wavelet_error"] and record["linear_stable"] is True
+
+
+@pytest.mark.parametrize("extra", [[], [{"parameter": "band.ramp_time", "values": [0.2]}]],
+                         ids=["grid map", "scatter over more axes"])
+def test_text_axis_maps_to_ticks(tmp_path, capsys, extra):
+    """A text-valued axis (rig.convention) in a 2-axis grid or scatter: its values become ticks."""
+    spec_path = write_spec(tmp_path / "spec.yaml", {
+        "base": {**CYCLE, "simulation": {"duration": 0.5}}, "wavelet": False,
+        "axes": [{"parameter": "rig.convention", "values": ["physical", "paper"]},
+                 {"parameter": "rig.damping_ratio", "values": [0.01, 0.1]}, *extra],
+    })
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec_path), "--out", str(out), "--scheduler", "serial"]) == 0, \
+        capsys.readouterr().err
+    for name in ("amplitude", "mu_range", "stick_fraction", "frequency", "linear"):
+        assert (out / f"map_{name}.png").read_bytes()[:4] == b"\x89PNG"
+    from lubrig_ros.figures.sweep import map_figure
+
+    table = pq.read_table(out / "results.parquet")
+    axes = json.loads(table.schema.metadata[b"lubrig_sweep_axes"])
+    fig = map_figure(table.to_pydict(), axes, "x_peak_to_peak", "amplitude", True, "t")
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["physical", "paper"]
+    assert ax.get_xlabel() == "rig.convention"

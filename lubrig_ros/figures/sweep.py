@@ -40,6 +40,18 @@ def _numeric(values: list[Any]) -> bool:
     return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
 
 
+def _positions(values: list[Any]) -> tuple[np.ndarray, list[str] | None]:
+    """Plot coordinates of axis values, and tick labels for text values (else None).
+
+    Numbers stay as they are; text (e.g. rig.convention) becomes the index of each distinct value
+    in order of first appearance.
+    """
+    if _numeric(values):
+        return np.asarray(values, dtype=float), None
+    labels = list(dict.fromkeys(str(v) for v in values))
+    return np.array([labels.index(str(v)) for v in values], dtype=float), labels
+
+
 def _metric(data: dict[str, list[Any]], column: str) -> tuple[np.ndarray, str | None]:
     """Values to colour by (NaN for failed/missing) and, for the frequency map, its caption."""
     ok = np.array([s == "ok" for s in data["status"]])
@@ -107,15 +119,15 @@ def map_figure(
             ax.set_yscale("log")
         if not x_num:
             ax.set_xticks(xs, [str(v) for v in np.asarray(x, dtype=object)[order]])
-    elif grid and len(axes) == 2 and _numeric(axes[0]["values"]) and _numeric(axes[1]["values"]):
-        cx, cy = np.asarray(axes[0]["values"], float), np.asarray(axes[1]["values"], float)
+    elif grid and len(axes) == 2:
+        (cx, x_labels), (cy, y_labels) = _positions(axes[0]["values"]), _positions(axes[1]["values"])
         matrix = np.full((cx.size, cy.size), np.nan)
         for index, value in zip(data["index"], values, strict=True):
             matrix[index // cy.size, index % cy.size] = value
         sx, sy = np.argsort(cx), np.argsort(cy)
         mesh = ax.pcolormesh(
-            _edges(cx[sx], axes[0]["log"]),
-            _edges(cy[sy], axes[1]["log"]),
+            _edges(cx[sx], axes[0]["log"] and x_labels is None),
+            _edges(cy[sy], axes[1]["log"] and y_labels is None),
             np.ma.masked_invalid(matrix[sx][:, sy].T),
             cmap=cmap,
             norm=norm,
@@ -124,32 +136,24 @@ def map_figure(
         bar = fig.colorbar(mesh, ax=ax, label=label)
     else:
         y_axis = axes[1]
-        y = data[y_axis["parameter"]]
-        scatter = ax.scatter(
-            np.asarray(x, float),
-            np.asarray(y, float),
-            c=values,
-            cmap=cmap,
-            norm=norm,
-            edgecolors="k",
-            linewidths=0.3,
-        )
-        ax.scatter(
-            np.asarray(x, float)[~np.isfinite(values)],
-            np.asarray(y, float)[~np.isfinite(values)],
-            marker="x",
-            color="grey",
-            label="failed / none",
-        )
+        xs, x_labels = _positions(x)
+        ys, y_labels = _positions(data[y_axis["parameter"]])
+        scatter = ax.scatter(xs, ys, c=values, cmap=cmap, norm=norm, edgecolors="k", linewidths=0.3)
+        failed = ~np.isfinite(values)
+        ax.scatter(xs[failed], ys[failed], marker="x", color="grey", label="failed / none")
         bar = fig.colorbar(scatter, ax=ax, label=label)
     if len(axes) >= 2:
+        if x_labels is not None:
+            ax.set_xticks(np.arange(len(x_labels)), x_labels)
+        if y_labels is not None:
+            ax.set_yticks(np.arange(len(y_labels)), y_labels)
         ax.set_ylabel(axes[1]["parameter"])
-        if axes[1]["log"]:
+        if axes[1]["log"] and y_labels is None:
             ax.set_yscale("log")
         if column == "linear_stable":
             bar.set_ticks([0, 1], labels=["unstable", "stable"])
     ax.set_xlabel(x_axis["parameter"])
-    if x_axis["log"]:
+    if x_axis["log"] and x_num:
         ax.set_xscale("log")
     extra = f" ({len(axes) - 2} more axes overlaid)" if len(axes) > 2 else ""
     ax.set_title(f"{title}: {label}{extra}", fontsize=9)
