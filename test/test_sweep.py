@@ -310,3 +310,22 @@ def test_text_axis_maps_to_ticks(tmp_path, capsys, extra):
     ax = fig.axes[0]
     assert [t.get_text() for t in ax.get_xticklabels()] == ["physical", "paper"]
     assert ax.get_xlabel() == "rig.convention"
+
+
+@pytest.mark.parametrize(("band", "linear_velocity"), [
+    ({"kind": "table", "times": [0.0, 0.2, 1.0], "velocities": [0.0, 2e-7, 1e-6]}, 2e-7),
+    ({"kind": "table", "times": [0.0, 1.0], "velocities": [0.0, 0.0]}, None),
+    ({"kind": "sine", "mean_velocity": 0.0, "amplitude": 1e-6, "frequency": 2.0}, None),
+], ids=["table from rest", "table at rest", "sine mean 0"])
+def test_band_from_rest_keeps_the_point(band, linear_velocity):
+    """A table starting from rest (or a sine with mean ≤ 0) is judged at its lowest velocity > 0,
+    or has null linear columns: the point, whose simulation succeeded, is not an error."""
+    from lubrig_ros.sweep import run_point
+
+    spec = parse_spec({"base": {"band": band, "simulation": {"duration": 1.0}}, "wavelet": False,
+                       "axes": [{"parameter": "rig.damping_ratio", "values": [0.05]}]})
+    record = run_point(spec.points[0])
+    assert record["status"] == "ok", record["error"]
+    assert record["x_peak_to_peak"] is not None
+    assert record["linear_velocity_m_s"] == linear_velocity
+    assert (record["linear_stable"] is None) == (linear_velocity is None)

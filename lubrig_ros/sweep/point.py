@@ -87,18 +87,26 @@ def wavelet_columns(config: RunConfig, displacement: Any) -> dict[str, Any]:
 def linear_columns(config: RunConfig) -> dict[str, Any]:
     """Routh–Hurwitz verdict at the band's lowest steady velocity (cycle: V1, and V2 must agree).
 
-    Constant band: its velocity. Cycle: stable only if both plateaus are; ζ_crit is the larger.
-    Sine: its mean velocity. Table: the lowest table velocity.
+    Constant band: its velocity (0 raises: no sliding equilibrium). Cycle: stable only if both
+    plateaus are; ζ_crit is the larger. Sine: its mean velocity. Table: the lowest table velocity
+    > 0 (a profile starting from rest has 0 among them). A cycle, sine or table with no velocity
+    > 0 has no sliding equilibrium to judge: the linear columns are null.
     """
     band = config.band
     if band.kind == "constant":
         velocities = [band.velocity]
-    elif band.kind == "cycle":
-        velocities = [band.low_velocity, band.high_velocity]
-    elif band.kind == "sine":
-        velocities = [band.mean_velocity]
     else:
-        velocities = [min(band.velocities)]
+        if band.kind == "cycle":
+            candidates = [band.low_velocity, band.high_velocity]
+        elif band.kind == "sine":
+            candidates = [band.mean_velocity]
+        else:
+            candidates = [min((v for v in band.velocities if v > 0.0), default=0.0)]
+        velocities = [v for v in candidates if v > 0.0]
+        if not velocities:
+            return dict.fromkeys(
+                ("linear_velocity_m_s", "linear_zone", "linear_stable", "critical_damping_ratio")
+            )
     verdicts = [linear_stability(v, config.rig) for v in velocities]
     worst = max(verdicts, key=lambda s: (not s.stable, s.critical_damping_ratio))
     return {
