@@ -94,3 +94,52 @@ def test_constant_displacement_is_clear_error(tmp_path, capsys):
     (run / "timeseries.csv").write_text("\n".join([lines[0]] + [",".join(r) for r in rows]))
     assert main(["analyze", str(run)]) == 2
     assert "constant" in capsys.readouterr().err
+
+
+def write_tone(directory, seconds, rate=1000.0):
+    """A long 10 Hz tone in the simulate format (only time and displacement vary)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    t = np.arange(int(seconds * rate)) / rate
+    x = 1e-7 * np.sin(2 * np.pi * 10.0 * t)
+    zeros = np.zeros_like(t)
+    table = np.column_stack((t, x, zeros, zeros, zeros, zeros))
+    np.savetxt(directory / "timeseries.csv", table, delimiter=",", header=HEADER, comments="", fmt="%.9g")
+    summary = {"sample_rate_hz": rate, "band_fundamental_hz": None, "natural_frequency_hz": 10.0}
+    (directory / "summary.json").write_text(json.dumps(summary))
+    return directory
+
+
+@pytest.fixture(scope="module")
+def long_tone(tmp_path_factory):
+    return write_tone(tmp_path_factory.mktemp("long") / "run", seconds=600.0)
+
+
+def _peak_bytes(call):
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        assert call() == 0
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_long_record_default_fmax_is_decimated_to_the_cap(long_tone):
+    """600 s at 1 kHz: the default fmax no longer blocks the cap (was ~190 scales × 6e5 samples)."""
+    from lubrig_ros.cli.analyze import MAX_POWER_POINTS
+
+    peak = _peak_bytes(lambda: main(["analyze", str(long_tone)]))
+    section = json.loads((long_tone / "summary.json").read_text())["wavelet"]
+    n_scales = round(np.log2(section["fmax_hz"] / section["fmin_hz"]) / section["dj"]) + 1
+    assert section["decimation"] > 1 and "decimated by" in section["decimation_note"]
+    assert np.ceil(600_000 / section["decimation"]) * n_scales <= MAX_POWER_POINTS * 1.01
+    assert section["fmax_hz"] <= 0.4 * 1000.0 / section["decimation"] * 1.0001
+    assert abs(section["dominant_frequencies"][0]["frequency_hz"] / 10 - 1) < 0.03
+    assert peak < 40 * MAX_POWER_POINTS  # a few copies of the capped power, not several GB
+    # an explicit --fmax above the decimated band is honoured: the record is shortened instead
+    assert main(["analyze", str(long_tone), "--fmax", "300"]) == 0
+    section = json.loads((long_tone / "summary.json").read_text())["wavelet"]
+    assert section["decimation"] == 1 and "only the last" in section["decimation_note"]
+    assert abs(section["fmax_hz"] / 300 - 1) < 0.1 and section["analysed_from_s"] > 0
+    assert abs(section["dominant_frequencies"][0]["frequency_hz"] / 10 - 1) < 0.03

@@ -17,6 +17,7 @@ import numpy as np
 from scipy.signal import decimate
 
 from ..core.wavelet import DEFAULT_DJ, MIN_SAMPLES, cwt, dominant_components, fourier_factor
+from .common import write_json
 from .main import CommandError
 
 COLUMNS = (
@@ -93,14 +94,42 @@ def analyze_run(
     t, x = time[keep], displacement[keep]
     if x.size < MIN_SAMPLES:
         raise CommandError(f"{x.size} samples after --start {start:g} s; at least {MIN_SAMPLES} are needed")
-    x = x - x.mean()
+    default_fmin, default_fmax = fmin is None, fmax is None
     fmax = 0.25 / dt if fmax is None else fmax
     fmin = 3.0 / (x.size * dt) if fmin is None else fmin
     if not 0 < fmin < fmax:
         raise CommandError(f"--fmin {fmin:g} Hz must be below --fmax {fmax:g} Hz")
     n_scales = math.floor(math.log2(fmax / fmin) / dj) + 1
+    # decimation by q keeps fmax ≤ 0.8 × the decimated Nyquist frequency 0.5 / (q dt)
     factor = max(1, math.ceil(x.size * n_scales / MAX_POWER_POINTS))
-    factor = min(factor, max(1, int(0.5 / (dt * fmax * 1.25))))  # keep fmax below 0.4 Nyquist
+    if default_fmax:  # the cap chooses the decimation, fmax follows it down
+        fmax = min(fmax, 0.4 / (dt * factor))
+        note = f"scales × samples ≤ {MAX_POWER_POINTS} without decimation"
+        if factor > 1:
+            note = (
+                f"decimated by {factor} to keep scales × samples ≤ {MAX_POWER_POINTS}; "
+                f"fmax lowered to {fmax:g} Hz (0.8 × the decimated Nyquist frequency)"
+            )
+    else:  # an explicit --fmax is honoured: decimate as far as it allows, then shorten
+        allowed = max(1, int(0.4 / (dt * fmax)))
+        factor = min(factor, allowed)
+        note = f"decimated by {factor} (--fmax {fmax:g} Hz allows at most {allowed})"
+        limit = (MAX_POWER_POINTS // n_scales) * factor
+        if x.size > limit:
+            left_out = float(t[x.size - limit] - t[0])
+            t, x = t[-limit:], x[-limit:]
+            if default_fmin:
+                fmin = 3.0 / (x.size * dt)
+            note += (
+                f"; only the last {x.size * dt:g} s analysed (the first {left_out:g} s after --start "
+                f"left out) to keep scales × samples ≤ {MAX_POWER_POINTS}"
+            )
+        else:
+            note += f"; scales × samples ≤ {MAX_POWER_POINTS}"
+    if not 0 < fmin < fmax:
+        raise CommandError(f"--fmin {fmin:g} Hz must be below fmax {fmax:g} Hz ({note})")
+    n_scales = math.floor(math.log2(fmax / fmin) / dj) + 1
+    x = x - x.mean()
     if factor > 1:
         x, t = decimate(x, factor, ftype="fir", zero_phase=True), t[::factor]
     s0 = 1.0 / (fmax * fourier_factor())
@@ -111,10 +140,12 @@ def analyze_run(
     section = {
         "signal": "displacement_m minus its mean",
         "start_s": start,
+        "analysed_from_s": float(t[0] - time[0]),
         "dj": dj,
         "fmin_hz": float(result.frequencies.min()),
         "fmax_hz": float(result.frequencies.max()),
         "decimation": factor,
+        "decimation_note": note,
         "lag1": result.lag1,
         "power": "|W|^2 / variance (Torrence & Compo), time mean outside the cone of influence",
         "dominant_frequencies": [
@@ -137,7 +168,7 @@ def analyze_run(
     fig = wavelet_figure(result, x, title=title, marks_hz=marks)
     fig.savefig(directory / "wavelet.png", dpi=120)
     summary["wavelet"] = section
-    (directory / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_json(directory / "summary.json", summary)
     return section
 
 
