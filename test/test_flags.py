@@ -104,5 +104,5 @@ def test_band_at_rest_has_no_linear_verdict_but_other_flags_work():
     )
     assert flags.band_velocity_m_s == 0.0
     assert flags.zone is None and flags.linear_stable is None and flags.critical_damping_ratio is None
-    assert flags.stick_share is None  # no default threshold without a band velocity
+    assert flags.stick_share == 1.0  # v_rel = 0 throughout: stuck (threshold: friction peak velocity)
     assert flags.oscillation == "steady" and flags.resonance is not None

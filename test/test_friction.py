@@ -144,3 +144,11 @@ def test_series_switch_is_seamless() -> None:
 def test_nan_velocity_is_rejected() -> None:
     with pytest.raises(ValueError, match="NaN"):
         friction_coefficient([1e-7, np.nan])
+
+
+def test_parameters_without_a_friction_peak_give_a_clear_error():
+    from lubrig_ros.core.friction import friction_peak
+    from lubrig_ros.core.params import FrictionParameters, ParameterError
+
+    with pytest.raises(ParameterError, match=r"no stationary point .*activation_exponent=-1\.0"):
+        friction_peak(FrictionParameters(activation_exponent=-1.0))

@@ -135,3 +135,12 @@ def test_constant_band_zone3_settles_at_equilibrium():
     traj = integ.advance(np.full(20000, 1e-6))
     x0 = integ.equilibrium_displacement
     assert abs(traj.displacement[-1] - x0) < 1e-6 * x0
+
+
+def test_reset_at_a_later_time_keeps_the_sample_grid():
+    integ = RigIntegrator(RigParameters(convention="paper"), 1e-7)
+    integ.advance(np.full(250, 1e-7))
+    integ.reset(band_velocity=2e-7, time=integ.time)
+    traj = integ.advance(np.full(10, 2e-7))
+    assert np.allclose(traj.time, 0.25 + 1e-3 * np.arange(1, 11), rtol=0, atol=1e-12)
+    assert integ.initial_band_velocity == 2e-7

@@ -40,8 +40,10 @@ def test_realtime_rates_parameters_services_analysis(tmp_path):
         state, band = f"{NS}/state", f"{NS}/band_velocity"
         assert probe.wait_for(lambda: len(probe.messages[state]) > 500, 20), procs.log("plant")
         # rates as configured (1 kHz)
-        assert 850 < probe.rate(state, 2.0) < 1150
-        assert 850 < probe.rate(band, 1.0) < 1150
+        rate, pacing = probe.stamped_rate(state, 2.0)
+        assert 950 < rate < 1050, rate  # one state per 1 ms of rig time
+        assert 0.85 < pacing < 1.15, pacing  # rig time follows the wall clock
+        assert 850 < probe.rate(band, 2.0) < 1150
         # analysis outputs
         assert probe.wait_for(lambda: probe.messages[f"{NS}/wavelet_power"], 10), procs.log("analysis")
         power = probe.messages[f"{NS}/wavelet_power"][-1]

@@ -8,6 +8,7 @@ import time
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from test_nodes_support import Probe, Procs, new_domain
 
@@ -30,6 +31,7 @@ def test_rig_in_loop_bad_input_and_staleness(tmp_path):
     procs = Procs(domain, tmp_path)
     try:
         probe.subscribe(f"{NS}/displacement", Float64)
+        probe.subscribe(f"{NS}/state", JointState)
         probe.subscribe("/diagnostics", DiagnosticArray)
         procs.start("plant", mode="rig_in_loop", diagnostics_period=0.25)
         pub = probe.node.create_publisher(Float64, f"{NS}/band_velocity", common.STREAM_QOS)
@@ -60,8 +62,8 @@ def test_rig_in_loop_bad_input_and_staleness(tmp_path):
 
         feeder = threading.Thread(target=feed, daemon=True)
         feeder.start()
-        rate = probe.rate(x, 2.0)
-        assert 850 < rate < 1150, rate
+        rate, pacing = probe.stamped_rate(f"{NS}/state", 2.0)
+        assert 950 < rate < 1050 and 0.85 < pacing < 1.15, (rate, pacing)
         diag = probe.messages["/diagnostics"]
         band = _values(diag[-1], "lubrig/plant: band input")
         assert int(band["rejected"]) > 20
@@ -69,8 +71,8 @@ def test_rig_in_loop_bad_input_and_staleness(tmp_path):
         assert band["stale"] == "false"
         # a gap in the input: the plant keeps its rate, holds the last good value, reports stale
         gap.set()
-        rate = probe.rate(x, 1.5)
-        assert 850 < rate < 1150, rate
+        rate, pacing = probe.stamped_rate(f"{NS}/state", 1.5)
+        assert 950 < rate < 1050 and 0.85 < pacing < 1.15, (rate, pacing)
         band = _values(diag[-1], "lubrig/plant: band input")
         assert band["stale"] == "true" and "stale" in band["_message"]
         held = float(band["held_band_velocity_m_s"])

@@ -75,6 +75,11 @@ def test_sim_case1_equals_core_simulate(tmp_path):
     stamps = np.array([s.header.stamp.sec + 1e-9 * s.header.stamp.nanosec for s in states])
     assert np.allclose(stamps, ref.time, atol=1e-9)
     assert np.array_equal([s.position[0] for s in states], ref.displacement)
+    # joint "band": the band velocity each sample was integrated with, and the belt travel
+    assert all(list(s.name) == ["mass", "band"] for s in states)
+    assert np.array_equal([s.velocity[1] for s in states], ref.band_velocity)
+    travel = np.concatenate([[0.0], np.cumsum(0.5 * (ref.band_velocity[1:] + ref.band_velocity[:-1]) * 1e-3)])
+    assert np.allclose([s.position[1] for s in states], travel, rtol=1e-9, atol=1e-18)
     for topic, column in (
         ("velocity", ref.velocity),
         ("friction_coefficient", ref.friction_coefficient),

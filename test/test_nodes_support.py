@@ -114,6 +114,21 @@ class Probe:
         time.sleep(seconds)
         return (len(self.times[name]) - start) / (time.monotonic() - t0)
 
+    def stamped_rate(self, name: str, seconds: float) -> tuple[float, float]:
+        """(messages per stamped second, stamped seconds per wall second) of header-stamped
+        messages received during the next `seconds`: the publisher's own rate and its pacing
+        against the wall clock, insensitive to delivery bursts at the window's edges."""
+        start = len(self.messages[name])
+        t0 = time.monotonic()
+        time.sleep(seconds)
+        wall = time.monotonic() - t0
+        msgs = self.messages[name][start:]
+        stamps = [m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec for m in msgs]
+        if len(stamps) < 2 or stamps[-1] <= stamps[0]:
+            return 0.0, 0.0
+        span = stamps[-1] - stamps[0]
+        return (len(stamps) - 1) / span, span / wall
+
     def set_parameter(self, node: str, name: str, value: Any) -> Any:
         """SetParameters on /<node>; returns the SetParametersResult."""
         from rcl_interfaces.srv import SetParameters

@@ -3,7 +3,8 @@
 * linear verdict and friction zone at the current band velocity (core.stability);
 * observed growth/decay rate of the oscillation envelope, 1/s: least-squares slope of the log of
   the wavelet amplitude √power at the natural-frequency scale, outside the cone of influence;
-* stick: |v_rel| < threshold, by default STICK_FRACTION × |v_band| (share of samples, episodes);
+* stick: |v_rel| < threshold, by default the friction-peak velocity (core.friction.stick_velocity,
+  as in the run summaries) (share of samples, episodes);
 * resonance: the band fundamental or one of its low harmonics within a relative margin of f0.
 
 Each field is None when the inputs needed for it were not given. `to_dict` gives plain values
@@ -18,12 +19,12 @@ from typing import Any
 
 import numpy as np
 
+from .friction import stick_velocity
 from .params import RigParameters
 from .stability import ZONE_NAMES, linear_stability
 from .wavelet import WaveletResult, check_signal, cwt, fourier_factor
 
 #: Default stick threshold as a fraction of |v_band|: |v_rel| below 1 % of the band speed.
-STICK_FRACTION = 0.01
 #: Default relative margin for the resonance warning: |k f_band − f0| ≤ 5 % of f0.
 RESONANCE_MARGIN = 0.05
 #: Harmonics of the band fundamental checked for resonance (k = 1 … 3).
@@ -150,7 +151,7 @@ def evaluate_flags(
     The growth rate comes from `wavelet` (a transform of the displacement) if given, else from
     `displacement` and `dt`. The oscillation is 'growing'/'decaying' when the fitted envelope
     changes by more than a factor 2 over the fitted span, else 'steady'. The stick threshold
-    defaults to STICK_FRACTION × |band_velocity|.
+    defaults to the friction-peak velocity (core.friction.stick_velocity).
     """
     values: dict[str, Any] = {}
     # A band at rest has no sliding equilibrium: no linear verdict and no default stick threshold.
@@ -187,8 +188,8 @@ def evaluate_flags(
         if dt is None:
             raise ValueError("dt is required with relative_velocity (sample interval in s)")
         threshold = stick_threshold_m_s
-        if threshold is None and moving:
-            threshold = STICK_FRACTION * abs(float(band_velocity))
+        if threshold is None:
+            threshold = stick_velocity(rig.friction)
         if threshold is not None:
             stats = detect_stick(relative_velocity, dt, threshold)
             values.update(

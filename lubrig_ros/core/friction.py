@@ -16,7 +16,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .kernels import _mu_and_slope_array, mu_and_slope
-from .params import FrictionParameters
+from .params import FrictionParameters, ParameterError
 
 
 def _params_array(params: FrictionParameters | None) -> np.ndarray:
@@ -61,7 +61,15 @@ def _stationary_point(params: FrictionParameters, low: float, high: float) -> Cu
     def slope(log_v: float) -> float:
         return mu_and_slope(10.0**log_v, p)[1]
 
-    log_v = brentq(slope, math.log10(low), math.log10(high), xtol=1e-14, rtol=1e-14)
+    a, b = math.log10(low), math.log10(high)
+    if not slope(a) * slope(b) < 0.0:
+        raise ParameterError(
+            f"the friction law has no stationary point between {low:.3g} and {high:.3g} m/s with "
+            f"these parameters (activation_exponent={params.activation_exponent}, "
+            f"shear_thinning_exponent={params.shear_thinning_exponent}, "
+            f"critical velocity {params.critical_velocity:.3g} m/s): its zones are undefined"
+        )
+    log_v = brentq(slope, a, b, xtol=1e-14, rtol=1e-14)
     v = 10.0**log_v
     return CurveLandmark(velocity=v, mu=float(mu_and_slope(v, p)[0]))
 
@@ -78,3 +86,12 @@ def friction_minimum(params: FrictionParameters | None = None) -> CurveLandmark:
     params = params or FrictionParameters()
     peak = friction_peak(params)
     return _stationary_point(params, 10.0 * peak.velocity, 1e-2)
+
+
+def stick_velocity(params: FrictionParameters | None = None) -> float:
+    """|v_rel| (m/s) below which the interface sticks: the velocity of the friction peak.
+
+    Below it μ rises with velocity (zone 1, junction stretching), so the interface acts as static
+    friction. One definition for the run summaries and the online stick flags.
+    """
+    return friction_peak(params).velocity

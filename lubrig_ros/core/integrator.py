@@ -102,16 +102,23 @@ class RigIntegrator:
         mu = mu_and_slope(self.initial_band_velocity, self._fp)[0]
         return mu * self.rig.friction.normal_force / self.rig.stiffness
 
-    def reset(self, band_velocity: float | None = None) -> None:
-        """Back to t = 0 and the initial condition (optionally for a new initial band velocity)."""
+    def reset(self, band_velocity: float | None = None, time: float = 0.0) -> None:
+        """Back to the initial condition at rig time `time` (s, default 0).
+
+        With `band_velocity` the initial condition is that of this band velocity (equilibrium plus
+        the perturbation); a plant recovering from a failed sample restarts there at its next
+        sample time instead of going back to t = 0.
+        """
         if band_velocity is not None:
             self.initial_band_velocity = float(band_velocity)
+        if not math.isfinite(time):
+            raise ValueError(f"time={time!r} must be finite")
         if self.initial_displacement is not None:
             x_start = float(self.initial_displacement)
         else:
             x_start = (1.0 + self.initial_perturbation) * self.equilibrium_displacement
         self._state = np.array(
-            [0.0, x_start, self.initial_velocity, self.initial_band_velocity, 0.1 * self.dt, 0.0]
+            [float(time), x_start, self.initial_velocity, self.initial_band_velocity, 0.1 * self.dt, 0.0]
         )
 
     @property

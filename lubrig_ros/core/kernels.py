@@ -287,13 +287,18 @@ def _advance(
     out_x: np.ndarray,
     out_w: np.ndarray,
 ) -> int:
-    """Advance over len(band) samples; state = [t, x, ẋ, v_band, h, substeps] is updated in place."""
+    """Advance over len(band) samples; state = [t, x, ẋ, v_band, h, substeps] is updated in place.
+
+    On failure (STEP_TOO_SMALL) the state is that of the last completed sample, so a caller can
+    carry on from the sample grid.
+    """
     t, x, w, vb_prev, h = state[0], state[1], state[2], state[3], state[4]
     substeps = state[5]
     work = np.empty((8, 3))
     jac = np.empty((3, 3))
     for k in range(band.size):
         t0 = t
+        x0, w0 = x, w  # the last completed sample, restored if this one fails
         t_end = t0 + dt
         vb_next = band[k]
         while t < t_end:
@@ -320,7 +325,8 @@ def _advance(
             else:
                 h = step * min(factor, 0.9)
                 if h < 1e-15 * max(1.0, abs(t)):
-                    state[0], state[1], state[2], state[3], state[4] = t, x, w, vb_prev, h
+                    # leave the state on the sample grid: the last completed sample
+                    state[0], state[1], state[2], state[3], state[4] = t0, x0, w0, vb_prev, dt * 0.1
                     state[5] = substeps
                     return STEP_TOO_SMALL
         t = t_end

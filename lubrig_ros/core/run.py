@@ -6,13 +6,9 @@ from typing import Any
 
 import numpy as np
 
-from .friction import friction_peak
+from .friction import stick_velocity
 from .integrator import RigIntegrator, Trajectory, concatenate
 from .presets import RunConfig
-
-#: Stick threshold factor: a sample is stuck when |v_rel| is below the velocity of the friction
-#: peak (end of zone 1), where the interface behaves as junction stretching, i.e. static friction.
-STICK_THRESHOLD_DOC = "|v_rel| below the velocity of the friction peak (end of zone 1)"
 
 
 def integrator_for(config: RunConfig) -> RigIntegrator:
@@ -77,7 +73,7 @@ def summarize(trajectory: Trajectory, config: RunConfig) -> dict[str, Any]:
     half = trajectory.time >= trajectory.time[-1] / 2.0
     x = trajectory.displacement[half]
     mu = trajectory.friction_coefficient[half]
-    stick_threshold = friction_peak(config.rig.friction).velocity
+    stick_threshold = stick_velocity(config.rig.friction)
     stuck = np.abs(trajectory.relative_velocity[half]) < stick_threshold
     peaks = spectral_peaks(x, config.sample_rate)
     return {

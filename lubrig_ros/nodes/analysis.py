@@ -42,9 +42,7 @@ FLAG_GROUPS: dict[str, tuple[str, ...]] = {
     "resonance": ("resonance", "resonance_harmonic", "resonance_detail"),
 }
 #: Colormap anchors (viridis-like), low → high power.
-_ANCHORS = np.array(
-    [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]], dtype=float
-)
+_ANCHORS = np.array([[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]], dtype=float)
 
 
 def render_power(power: np.ndarray, width: int, decades: float = 4.0) -> np.ndarray:
@@ -100,22 +98,16 @@ class Analysis(Node):
         ).value
         if convention:
             config = config.with_overrides(convention=convention)
-        self.window = int(
-            self.declare_parameter("window", 2048, d("samples analysed", read_only=True)).value
-        )
-        self.n_scales = int(
-            self.declare_parameter("n_scales", 32, d("wavelet scales", read_only=True)).value
-        )
+        self.window = int(self.declare_parameter("window", 2048, d("samples analysed", read_only=True)).value)
+        self.n_scales = int(self.declare_parameter("n_scales", 32, d("wavelet scales", read_only=True)).value)
         self.period = float(
-            self.declare_parameter(
-                "publish_period", 0.2, d("s (wall) between updates", read_only=True)
-            ).value
+            self.declare_parameter("publish_period", 0.2, d("s (wall) between updates", read_only=True)).value
         )
-        self.image_width = int(
-            self.declare_parameter("image_width", 256, d("pixels", read_only=True)).value
-        )
+        self.image_width = int(self.declare_parameter("image_width", 256, d("pixels", read_only=True)).value)
         self.max_columns = int(
-            self.declare_parameter("max_columns", 64, d("newest power columns per message")).value
+            self.declare_parameter(
+                "max_columns", 64, d("newest power columns per message", read_only=True)
+            ).value
         )
         if self.window < 64:
             raise ParameterError(f"window={self.window!r} is not valid; expected an integer >= 64")
@@ -132,16 +124,13 @@ class Analysis(Node):
         self.vrel: list[float] = []
         self.band: float | None = None
         self.bad_messages = 0
+        self.bad_updates = 0  # analysis updates skipped on input it cannot analyse
         q = common.ANALYSIS_QOS
         self.pub_freq = self.create_publisher(Float64, common.topic(ns, common.DOMINANT_FREQUENCY), q)
-        self.pub_power = self.create_publisher(
-            Float64MultiArray, common.topic(ns, common.WAVELET_POWER), q
-        )
+        self.pub_power = self.create_publisher(Float64MultiArray, common.topic(ns, common.WAVELET_POWER), q)
         self.pub_image = self.create_publisher(Image, common.topic(ns, common.WAVELET_IMAGE), q)
         self.pub_zone = self.create_publisher(UInt8, common.topic(ns, common.LINEAR_ZONE), q)
-        self.pub_zeta = self.create_publisher(
-            Float64, common.topic(ns, common.CRITICAL_DAMPING_RATIO), q
-        )
+        self.pub_zeta = self.create_publisher(Float64, common.topic(ns, common.CRITICAL_DAMPING_RATIO), q)
         self.pub_growing = self.create_publisher(Bool, common.topic(ns, common.OSCILLATION_GROWING), q)
         self.pub_diag = self.create_publisher(DiagnosticArray, common.DIAGNOSTICS, q)
         s = common.STREAM_QOS
@@ -191,10 +180,22 @@ class Analysis(Node):
         if not (math.isfinite(x) and math.isfinite(v)):
             self.bad_messages += 1
             return
+        # the plant's state carries the band velocity of its own sample (joint "band"); pair with
+        # it, not with the latest band message, which in sim mode runs up to flow_window ahead
+        band = msg.velocity[1] if len(msg.velocity) > 1 and math.isfinite(msg.velocity[1]) else None
+        if band is not None:
+            self.band = band
         self.x.append(x)
         self.vrel.append((self.band or 0.0) - self.gamma * v)
 
     def _tick(self) -> None:
+        try:
+            self._analyse()
+        except (ParameterError, ValueError, ArithmeticError) as exc:  # never die on odd input
+            self.bad_updates += 1
+            self.get_logger().warning(f"analysis update skipped: {exc}", throttle_duration_sec=5.0)
+
+    def _analyse(self) -> None:
         if self.band:  # a band at rest has no sliding equilibrium, hence no zone or ζ_crit
             verdict = linear_stability(abs(self.band), self.config.rig)
             self.pub_zone.publish(UInt8(data=int(verdict.zone)))
@@ -204,11 +205,7 @@ class Analysis(Node):
             return
         x, vrel = self.x, self.vrel
         self.x, self.vrel = [], []
-        try:
-            update = self.analyzer.push(x, vrel, band_velocity=self.band)
-        except ValueError as exc:
-            self.get_logger().warning(f"analysis update skipped: {exc}")
-            return
+        update = self.analyzer.push(x, vrel, band_velocity=self.band)
         if update.ready:
             self._publish(update)
 

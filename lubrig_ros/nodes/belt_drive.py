@@ -47,9 +47,7 @@ def profile_from_values(values: dict[str, Any], fallback: BandProfile) -> BandPr
             return profile_from_dict({"kind": "table", "path": values["path"]})
         if fallback.kind == "table":
             return fallback
-        raise ParameterError(
-            "profile.kind='table' needs profile.path (a CSV of time_s,band_velocity_m_s)"
-        )
+        raise ParameterError("profile.kind='table' needs profile.path (a CSV of time_s,band_velocity_m_s)")
     fields = {name: values[name] for name, (kinds, _) in PROFILE_FIELDS.items() if kind in kinds}
     return profile_from_dict({"kind": kind, **fields})
 
@@ -62,9 +60,7 @@ class BeltDrive(Node):
         config: RunConfig = common.declare_run_selection(self)
         ns = self.get_parameter("topic_namespace").value
         self.mode = common.check_mode(
-            self.declare_parameter(
-                "mode", "sim", common.descriptor("sim | realtime", read_only=True)
-            ).value
+            self.declare_parameter("mode", "sim", common.descriptor("sim | realtime", read_only=True)).value
         )
         if self.mode == "rig_in_loop":
             raise ParameterError(
@@ -74,18 +70,22 @@ class BeltDrive(Node):
         self.duration = self._positive("duration", config.duration, "run length, s (sim mode)")
         self.flow_window = int(
             self.declare_parameter(
-                "flow_window", 200, common.descriptor("sim: samples ahead of the plant's clock")
+                "flow_window",
+                200,
+                common.descriptor("sim: samples ahead of the plant's clock", read_only=True),
             ).value
         )
         if not 1 <= self.flow_window <= 900:
-            raise ParameterError(
-                f"flow_window={self.flow_window!r} is not valid; expected 1..900 samples"
-            )
+            raise ParameterError(f"flow_window={self.flow_window!r} is not valid; expected 1..900 samples")
         self.start_delay = float(
             self.declare_parameter(
-                "start_delay", 0.5, common.descriptor("s of wall time to wait once the plant is seen")
+                "start_delay",
+                0.5,
+                common.descriptor("s of wall time to wait once the plant is seen", read_only=True),
             ).value
         )
+        if not (common.finite(self.start_delay) and 0.0 <= self.start_delay <= 60.0):
+            raise ParameterError(f"start_delay={self.start_delay!r} is not valid; expected 0..60 s")
         self.wait_for_subscriber = common.declare_wait_for_subscriber(self)
         self.realtime_priority = common.declare_realtime_priority(self)
         # profile.* defaults come from the selected configuration's band section.
@@ -142,9 +142,7 @@ class BeltDrive(Node):
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """Validate profile.* updates as a whole; swap the profile only when valid."""
-        updates = {
-            p.name.removeprefix("profile."): p.value for p in params if p.name.startswith("profile.")
-        }
+        updates = {p.name.removeprefix("profile."): p.value for p in params if p.name.startswith("profile.")}
         if not updates:
             return SetParametersResult(successful=True)
         for name, value in updates.items():
@@ -209,7 +207,9 @@ class BeltDrive(Node):
             msg.data = self._sample(k)
             try:
                 self.publisher.publish(msg)
-            except Exception:  # context shut down while stopping
+            except Exception as exc:
+                if not self._stop.is_set() and self.context.ok():
+                    self.get_logger().fatal(f"real-time loop stopped: {exc!r}")
                 return
             k += 1
 

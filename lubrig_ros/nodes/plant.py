@@ -65,15 +65,13 @@ class Plant(Node):
         self.declare_parameter("sample_rate", base.sample_rate, d("Hz", read_only=True))
         self.declare_parameter("duration", base.duration, d("s of rig time (sim mode)", read_only=True))
         self.declare_parameter("rtol", base.rtol, d("integrator relative tolerance [1e-13, 1e-2]"))
+        self.declare_parameter("initial_perturbation", base.initial_perturbation, d("x(0) = (1 + this) x0"))
         self.declare_parameter(
-            "initial_perturbation", base.initial_perturbation, d("x(0) = (1 + this) x0")
+            "convention", base.rig.convention, d("physical | paper; empty: the run configuration's")
         )
-        self.declare_parameter("convention", base.rig.convention, d("physical | paper"))
         for name in RIG_FIELDS:
             self.declare_parameter(f"rig.{name}", float(getattr(base.rig, name)), d(f"rig {name} (SI)"))
-        self.declare_parameter(
-            "rig.normal_force", base.rig.friction.normal_force, d("normal force N, N")
-        )
+        self.declare_parameter("rig.normal_force", base.rig.friction.normal_force, d("normal force N, N"))
         for name in FRICTION_FIELDS:
             if name != "normal_force":
                 self.declare_parameter(
@@ -83,11 +81,15 @@ class Plant(Node):
                 )
         self.band_limit = float(
             self.declare_parameter(
-                "band_velocity_limit", common.BAND_VELOCITY_LIMIT, d("largest accepted |v_band|, m/s")
+                "band_velocity_limit",
+                common.BAND_VELOCITY_LIMIT,
+                d("largest accepted |v_band|, m/s", read_only=True),
             ).value
         )
         self.stale_timeout = float(
-            self.declare_parameter("stale_timeout", 0.05, d("s without good band input = stale")).value
+            self.declare_parameter(
+                "stale_timeout", 0.05, d("s without good band input = stale", read_only=True)
+            ).value
         )
         self.wait_for_subscriber = common.declare_wait_for_subscriber(self)
         self.realtime_priority = common.declare_realtime_priority(self)
@@ -127,7 +129,7 @@ class Plant(Node):
         # timing
         self.misses = 0
         self.ticks = 0
-        self.latencies: deque[float] = deque(maxlen=200_000)
+        self.latencies = common.LatencyHistogram()
         self.max_late = 0.0
 
         qos = common.STREAM_QOS
@@ -157,7 +159,9 @@ class Plant(Node):
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._msgs = (Float64(), Float64(), Float64(), JointState(), Clock())
-        self._msgs[3].name = ["mass"]
+        self._msgs[3].name = ["mass", "band"]
+        self.band_travel = 0.0  # m, integral of the band velocity since the last reset
+        self._last_band: tuple[float, float] | None = None
         if self.mode == "sim":
             self.create_timer(0.2, self._heartbeat)
         else:
@@ -179,7 +183,7 @@ class Plant(Node):
 
         data = self._base.to_dict()
         data["rig"].update({n: value(f"rig.{n}") for n in RIG_FIELDS})
-        data["rig"]["convention"] = value("convention")
+        data["rig"]["convention"] = value("convention") or self._base.rig.convention  # "" = config's
         friction = {n: value(f"friction.{n}") for n in FRICTION_FIELDS if n != "normal_force"}
         friction["normal_force"] = value("rig.normal_force")
         data["rig"]["friction"] = friction
@@ -192,9 +196,7 @@ class Plant(Node):
         """Validate rig/friction/integration updates; they take effect at the next reset."""
         names = {"convention", "rtol", "initial_perturbation"}
         updates = {
-            p.name: p.value
-            for p in params
-            if p.name in names or p.name.startswith(("rig.", "friction."))
+            p.name: p.value for p in params if p.name in names or p.name.startswith(("rig.", "friction."))
         }
         if not updates:
             return SetParametersResult(successful=True)
@@ -219,7 +221,10 @@ class Plant(Node):
             self.complete = False
             self._queue.clear()
             self._published_initial = False
-            self.latest_band = self.initial_band = float(config.band(0.0))
+            self.initial_band = float(config.band(0.0))
+            if self.mode != "sim":  # realtime / rig in the loop: keep the band input, start there
+                self.integrator.reset(band_velocity=self.latest_band)
+            self.band_travel, self._last_band = 0.0, None
             if self._thread is not None:
                 self._restart_clock = True
         self.pub_complete.publish(Bool(data=False))
@@ -279,8 +284,6 @@ class Plant(Node):
                     self.ignored_after_end += 1
                     continue
                 traj = self._advance(band)
-                if traj is None:
-                    continue
                 self.sample_index += 1
                 self._publish(traj, 0)
                 if self.sample_index >= self.total:
@@ -304,19 +307,27 @@ class Plant(Node):
         self.pub_clock.publish(clock)
 
     # ---- integration and output ----------------------------------------------------------
-    def _advance(self, band: float) -> Trajectory | None:
+    def _advance(self, band: float) -> Trajectory:
+        """One sample; a failed one restarts the rig at equilibrium at the next sample time.
+
+        Restarting there (not at t = 0) keeps /clock monotonic and the sample count right, so a
+        sim run still completes and belt_drive's flow control does not stall.
+        """
+        t_next = self.integrator.time + self.integrator.dt
         try:
             traj = self.integrator.advance(np.array([band]))
+            if math.isfinite(traj.displacement[0]) and math.isfinite(traj.velocity[0]):
+                return traj
+            problem = "non-finite state"
         except (ValueError, ArithmeticError, RuntimeError) as exc:
-            self.integration_errors += 1
-            self.get_logger().error(f"integration failed ({exc}); rig reset, band {band!r} held")
-            self.integrator.reset(band_velocity=band)
-            return None
-        if not (math.isfinite(traj.displacement[0]) and math.isfinite(traj.velocity[0])):
-            self.integration_errors += 1
-            self.integrator.reset(band_velocity=band)
-            return None
-        return traj
+            problem = str(exc)
+        self.integration_errors += 1
+        self.get_logger().error(
+            f"integration failed at t = {t_next:.6g} s ({problem}); rig restarted at equilibrium "
+            f"for band velocity {band!r} m/s"
+        )
+        self.integrator.reset(band_velocity=band, time=t_next)
+        return self.integrator.current()
 
     def _publish(self, traj: Trajectory, i: int) -> None:
         mx, mv, mmu, state, clock = self._msgs
@@ -325,12 +336,18 @@ class Plant(Node):
         mu = float(traj.friction_coefficient[i])
         if not (math.isfinite(x) and math.isfinite(v) and math.isfinite(mu)):
             return
-        sec, nsec = _stamp(float(traj.time[i]))
+        t, band = float(traj.time[i]), float(traj.band_velocity[i])
+        if self._last_band is not None and t > self._last_band[0]:  # belt travel, trapezoid rule
+            self.band_travel += 0.5 * (band + self._last_band[1]) * (t - self._last_band[0])
+        self._last_band = (t, band)
+        sec, nsec = _stamp(t)
         mx.data, mv.data, mmu.data = x, v, mu
         state.header.stamp.sec, state.header.stamp.nanosec = sec, nsec
-        state.position = [x]
-        state.velocity = [v]
-        state.effort = [mu * self.config.rig.friction.normal_force]
+        # joint "mass": x, ẋ, friction force; joint "band": belt travel, the band velocity this
+        # sample was integrated with (so subscribers pair each state with its own v_band), 0
+        state.position = [x, self.band_travel]
+        state.velocity = [v, band]
+        state.effort = [mu * self.config.rig.friction.normal_force, 0.0]
         self.pub_x.publish(mx)
         self.pub_v.publish(mv)
         self.pub_mu.publish(mmu)
@@ -357,19 +374,19 @@ class Plant(Node):
                 k = 0
             k += 1
             late = loop.wait(k)
-            with self.lock:
-                recv = self.latest_band_recv if self.new_band else None
-                self.new_band = False
-                traj = self._advance(self.latest_band)
-                if traj is not None:
-                    try:
-                        self._publish(traj, 0)
-                    except Exception:  # context shut down while stopping
-                        return
+            try:
+                with self.lock:
+                    recv = self.latest_band_recv if self.new_band else None
+                    self.new_band = False
+                    self._publish(self._advance(self.latest_band), 0)
+            except Exception as exc:
+                if not self._stop.is_set() and self.context.ok():
+                    self.get_logger().fatal(f"real-time loop stopped: {exc!r}")
+                return
             done = time.perf_counter()
             self.ticks += 1
             if recv is not None:
-                self.latencies.append(done - recv)
+                self.latencies.add(done - recv)
             late_done = done - loop.deadline(k)
             self.max_late = max(self.max_late, late)
             if late_done > period:
@@ -380,7 +397,7 @@ class Plant(Node):
         array = DiagnosticArray()
         array.header.stamp = self.get_clock().now().to_msg()
         timing = DiagnosticStatus(name="lubrig/plant: timing", hardware_id="lubrig_plant")
-        p50, p99 = common.percentiles(self.latencies)
+        p50, p99 = self.latencies.percentiles()
         ticks = self.ticks if self.mode != "sim" else self.sample_index
         share = self.misses / ticks if ticks else 0.0
         timing.values = [
@@ -392,7 +409,7 @@ class Plant(Node):
             KeyValue(key="max_lateness_s", value=f"{self.max_late:.6f}"),
             KeyValue(key="latency_p50_s", value=f"{p50:.6f}"),
             KeyValue(key="latency_p99_s", value=f"{p99:.6f}"),
-            KeyValue(key="latency_samples", value=str(len(self.latencies))),
+            KeyValue(key="latency_samples", value=str(self.latencies.count)),
             KeyValue(key="integration_errors", value=str(self.integration_errors)),
             KeyValue(key="paused", value=str(self.paused).lower()),
             KeyValue(key="run_complete", value=str(self.complete).lower()),
