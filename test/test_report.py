@@ -16,10 +16,10 @@ from lubrig_ros.bag.writer import serialize_string, typestore
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate, summarize
 from lubrig_ros.figures.timeseries import friction_velocity_figure, phase_figure
-from lubrig_ros.report import trajectory_from_bag
+from lubrig_ros.report import ReportError, trajectory_from_bag
 
 
-def _bag(path: Path, duration: float = 3.0) -> tuple[object, object]:
+def _bag(path: Path, duration: float = 3.0, namespace: str = "/lubrig") -> tuple[object, object]:
     config = load_case(1).with_overrides(duration=duration)
     traj = simulate(config)
     ts = typestore()
@@ -27,19 +27,19 @@ def _bag(path: Path, duration: float = 3.0) -> tuple[object, object]:
         "builtin_interfaces/msg/Time"]
     f64 = ts.types["std_msgs/msg/Float64"]
     writer = BagWriter(path, run_config=config.to_yaml())
-    writer.write("/lubrig/run_config", "std_msgs/msg/String", 0, serialize_string(config.to_yaml()))
+    writer.write(f"{namespace}/run_config", "std_msgs/msg/String", 0, serialize_string(config.to_yaml()))
     normal = config.rig.friction.normal_force
     for k, t in enumerate(traj.time):
         ns = round(float(t) * 1e9)
         sec, nsec = divmod(ns, 10**9)
         state = js(hdr(stamp(sec, nsec), ""), ["mass"], np.array([traj.displacement[k]]),
                    np.array([traj.velocity[k]]), np.array([traj.friction_coefficient[k] * normal]))
-        writer.write("/lubrig/state", "sensor_msgs/msg/JointState", ns,
+        writer.write(f"{namespace}/state", "sensor_msgs/msg/JointState", ns,
                      ts.serialize_cdr(state, "sensor_msgs/msg/JointState"))
-        writer.write("/lubrig/friction_coefficient", "std_msgs/msg/Float64", ns,
+        writer.write(f"{namespace}/friction_coefficient", "std_msgs/msg/Float64", ns,
                      ts.serialize_cdr(f64(float(traj.friction_coefficient[k])), "std_msgs/msg/Float64"))
         if k:
-            writer.write("/lubrig/band_velocity", "std_msgs/msg/Float64", ns,
+            writer.write(f"{namespace}/band_velocity", "std_msgs/msg/Float64", ns,
                          ts.serialize_cdr(f64(float(traj.band_velocity[k])), "std_msgs/msg/Float64"))
     writer.close()
     return config, traj
@@ -105,3 +105,17 @@ def test_truncated_bag_one_error_line(recorded: tuple, tmp_path: Path) -> None:
     assert len(lines) == 1 and "damaged" in lines[0], res.stderr
     res = _cli("report", str(tmp_path / "missing"), "--out", str(tmp_path / "r"))
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1
+
+
+def test_bag_of_another_namespace(tmp_path: Path) -> None:
+    """The rig namespace is taken from the bag's JointState <ns>/state topic."""
+    bag = tmp_path / "bag"
+    _, traj = _bag(bag, duration=0.5, namespace="/rig2")
+    _, rebuilt = trajectory_from_bag(bag)
+    np.testing.assert_array_equal(rebuilt.displacement, traj.displacement)
+    np.testing.assert_array_equal(rebuilt.friction_coefficient, traj.friction_coefficient)
+    np.testing.assert_array_equal(rebuilt.band_velocity, traj.band_velocity)
+    res = _cli("report", str(bag), "--out", str(tmp_path / "report"))
+    assert res.returncode == 0, res.stderr
+    with pytest.raises(ReportError, match="fewer than 2 /lubrig/state"):
+        trajectory_from_bag(bag, namespace="/lubrig")
