@@ -1,4 +1,4 @@
-"""`lubrig bag info|check|repair DIR`: inspect and repair recorded bags."""
+"""`lubrig bag info|repair DIR`: inspect and repair recorded bags."""
 
 from __future__ import annotations
 
