@@ -49,3 +49,28 @@ def test_replay_same_messages_in_order_with_timing(tmp_path: Path) -> None:
         times = [(t - mine[0][0]) / 1e9 for t, _v in mine]
         errors = [abs(t - k / RATE_HZ) for k, t in enumerate(times)]
         assert max(errors) < 0.05, f"{topic}: timing error up to {max(errors) * 1e3:.1f} ms"
+
+
+def test_sigint_during_a_long_gap_at_low_rate_stops_promptly(tmp_path: Path) -> None:
+    """A 100 s gap in log times at --rate 0.01 is a 10^4 s wait: SIGINT must end it in about 1 s."""
+    import signal
+    import time
+
+    bag = tmp_path / "bag"
+    w = BagWriter(bag, run_config="a: 1\n")
+    w.write(TOPICS[0], "std_msgs/msg/Float64", 1_000_000_000, _f64(1.0))
+    w.write(TOPICS[0], "std_msgs/msg/Float64", 101_000_000_000, _f64(2.0))
+    w.close()
+    replay = start_module(
+        "lubrig_ros.nodes.replay", str(bag), "--rate", "0.01", "--wait-for-subscribers", "0",
+        env=ros_env(),
+    )
+    with replay:
+        replay.wait_for_output("replay:")
+        time.sleep(1.0)  # now in the gap
+        sent = time.monotonic()
+        status = replay.stop(signal.SIGINT, timeout=10)
+        took = time.monotonic() - sent
+        assert status == 0, replay.errors()
+        assert took < 1.5, f"replay took {took:.1f} s to stop"
+        assert "published 1 messages" in replay.output()

@@ -107,9 +107,8 @@ def run(args: argparse.Namespace) -> int:
                     break
                 if t < first:
                     continue
-                ahead = t0 + (t - first) / 1e9 / args.rate - time.monotonic()
-                if ahead > 0:
-                    time.sleep(ahead)
+                if not sleep_until(t0 + (t - first) / 1e9 / args.rate, stop):
+                    break
                 if clock_pub is not None:
                     clock.clock.sec, clock.clock.nanosec = divmod(t, 1_000_000_000)
                     clock_pub.publish(clock)
@@ -123,6 +122,20 @@ def run(args: argparse.Namespace) -> int:
         rclpy.shutdown()
     print(f"replay: published {published} messages", flush=True)
     return 0
+
+
+def sleep_until(deadline: float, stop: list[bool], step: float = 0.1) -> bool:
+    """Sleep until time.monotonic() reaches deadline, in slices of at most step s.
+
+    Returns False as soon as stop[0] is set (a signal handler returning resumes a plain
+    time.sleep, so a long gap at a low --rate could not be interrupted).
+    """
+    while not stop[0]:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return True
+        time.sleep(min(step, left))
+    return False
 
 
 def main(argv: Sequence[str] | None = None) -> int:
