@@ -12,7 +12,6 @@ import os
 import time
 from pathlib import Path
 
-import yaml
 from rosbags.interfaces import (
     Connection,
     Qos,
@@ -219,7 +218,3 @@ class BagWriter:
             self.failed = f"writing bag {str(self.path)!r} failed: {exc.strerror or exc}"
             raise BagError(self.failed) from exc
 
-
-def dump_yaml(data: object) -> str:
-    """YAML text of data (block style)."""
-    return yaml.safe_dump(data, default_flow_style=False, sort_keys=False)

@@ -33,13 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", required=True)
     for name in SUBCOMMAND_MODULES:
-        try:
-            module = importlib.import_module(f"lubrig_ros.cli.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"lubrig_ros.cli.{name}":
-                continue  # subcommand not built yet
-            raise
-        module.register(subparsers)
+        importlib.import_module(f"lubrig_ros.cli.{name}").register(subparsers)
     return parser
 
 

@@ -11,7 +11,6 @@ period) so that the bag is finalized, and finally writes the report of the bag i
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import math
 import os
 import shutil
@@ -43,10 +42,6 @@ def _executable(name: str) -> str:
 
 RECORDER_NODE_PREFIX = "lubrig_recorder"  # the recorder's worker nodes: lubrig_recorder_w<i>_<pid>
 
-
-def recorder_available() -> bool:
-    """True once the recorder node module exists."""
-    return importlib.util.find_spec("lubrig_ros.nodes.recorder") is not None
 
 
 def select_config(args: argparse.Namespace) -> tuple[RunConfig, dict[str, object]]:
@@ -182,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     procs: dict[str, subprocess.Popen] = {}
     env = dict(os.environ)
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
-    with_recorder = recorder_available() and not args.no_recorder
+    with_recorder = not args.no_recorder
     if with_recorder:
         # sim: nothing flows before the recorder has subscribed to every output (no lost sample)
         if mode == "sim":
@@ -240,7 +235,7 @@ def run(args: argparse.Namespace) -> int:
     if with_recorder:
         print(f"  bag:               {bag / 'bag'}")
     else:
-        print("  (no recorder node installed yet: nothing recorded)")
+        print("  (--no-recorder: nothing recorded)")
     if bad:
         raise CommandError(f"node(s) exited with errors {bad}; see {logs}")
     if with_recorder and not args.no_report and not math.isnan(wall):

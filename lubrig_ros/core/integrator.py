@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .kernels import _A, _A2, _C, _E, OK, _advance, mu_and_slope
+from .kernels import _A, _A2, _C, _E, OK, _advance, _mu_and_slope_array, mu_and_slope
 from .params import RigParameters
 
 
@@ -166,14 +166,13 @@ class RigIntegrator:
     def _sampled(
         self, time: np.ndarray, x: np.ndarray, w: np.ndarray, band: np.ndarray
     ) -> Trajectory:
-        from .friction import friction_coefficient
-
         relative = band - self.rig.velocity_factor * w
+        mu = _mu_and_slope_array(np.ascontiguousarray(relative), self._fp)[0]  # params already packed
         return Trajectory(
             time=time,
             displacement=x,
             velocity=w,
-            friction_coefficient=friction_coefficient(relative, self.rig.friction),
+            friction_coefficient=mu,
             band_velocity=band,
             relative_velocity=relative,
         )

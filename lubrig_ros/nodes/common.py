@@ -11,11 +11,10 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterable
-from typing import Any
 
 import numpy as np
 import rclpy
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -297,17 +296,11 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
     return status
 
 
-def param_value(node: Node, name: str) -> Any:
-    """Current value of a declared parameter."""
-    return node.get_parameter(name).value
-
-
 __all__ = [
     "ANALYSIS_QOS",
     "LATCHED_QOS",
     "STREAM_QOS",
     "DeadlineLoop",
-    "ParameterType",
     "declare_run_selection",
     "spin_node",
     "topic",
