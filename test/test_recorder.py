@@ -102,3 +102,16 @@ def test_unwritable_output_is_one_clear_error(tmp_path: Path) -> None:
     assert res.returncode == 2 and "already exists" in res.stderr
     res = run_module("lubrig_ros.nodes.recorder", "--topics", "nope", env=ros_env())
     assert res.returncode == 2 and "'nope'" in res.stderr and "/lubrig/state" in res.stderr
+
+
+def test_worker_dying_before_ready_is_one_error_line(tmp_path: Path) -> None:
+    """A worker that cannot start its node (domain id out of range) names its topics; exit 2."""
+    env = {**ros_env(), "ROS_DOMAIN_ID": "99999"}
+    started = time.monotonic()
+    res = run_module("lubrig_ros.nodes.recorder", "-o", str(tmp_path / "bag"), "--topics", "state",
+                     env=env)
+    assert time.monotonic() - started < 20  # not the 30 s ready timeout
+    assert res.returncode == 2, res.stderr
+    ours = [line for line in res.stderr.splitlines() if line.startswith("recorder:")]
+    assert ours == [ours[0]] and "worker 0 (/lubrig/state) exited with status" in ours[0], res.stderr
+    assert "Traceback" not in res.stderr.split("recorder:")[-1] and "queue.Empty" not in res.stderr

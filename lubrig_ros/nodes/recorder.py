@@ -193,8 +193,11 @@ class Recorder:
         self.stop_event = mp.get_context("spawn").Event()
         self.procs: list[mp.Process] = []
 
-    def start_workers(self) -> None:
-        """Spawn the subscriber processes; return when all have created their subscriptions."""
+    def start_workers(self, timeout: float = 30.0) -> None:
+        """Spawn the subscriber processes; return when all have created their subscriptions.
+
+        BagError, naming the worker's topics, if one dies or is not ready within timeout s.
+        """
         ctx = mp.get_context("spawn")
         groups = [list(range(i, len(self.topics), self.n_workers)) for i in range(self.n_workers)]
         self.index_map: list[int] = []
@@ -208,14 +211,28 @@ class Recorder:
             )
             proc.start()
             self.procs.append(proc)
-        ready = 0
-        deadline = time.monotonic() + 30
-        while ready < len(self.procs):
-            kind, _wid, payload = self.queue.get(timeout=max(0.1, deadline - time.monotonic()))
+        ready: set[int] = set()
+        deadline = time.monotonic() + timeout
+        while len(ready) < len(self.procs):
+            try:
+                kind, wid, payload = self.queue.get(timeout=0.2)
+            except queue.Empty:
+                kind = wid = payload = None
             if kind == "ready":
-                ready += 1
+                ready.add(wid)
             elif kind == "data":
                 self._handle(payload)
+            for wid, (proc, group) in enumerate(zip(self.procs, groups, strict=True)):
+                if wid in ready:
+                    continue
+                names = ", ".join(self.topics[i].spec.name for i in group)
+                if not proc.is_alive():
+                    raise BagError(
+                        f"recorder worker {wid} ({names}) exited with status {proc.exitcode} "
+                        "before subscribing"
+                    )
+                if time.monotonic() > deadline:
+                    raise BagError(f"recorder worker {wid} ({names}) not ready after {timeout:g} s")
 
     def _log_time(self, topic: _Topic, recv: int, data: bytes, force: bool) -> int | None:
         if not self.use_sim_time:
@@ -394,6 +411,11 @@ def run(args: argparse.Namespace) -> int:
     status = 0
     try:
         recorder.start_workers()
+    except BagError:  # nothing recorded yet: one error line, exit 2 (run_script)
+        with contextlib.suppress(BagError):
+            recorder.shutdown()
+        raise
+    try:
         print(
             f"recorder: recording {len(specs)} topics with {len(recorder.procs)} workers to {output}",
             flush=True,
