@@ -212,7 +212,7 @@ def comparison_markdown(rows: list[Row], cases: list[dict[str, Any]], duration: 
         "",
         f"Offline core runs, {duration:g} s of rig time per case; frequencies from the wavelet "
         "spectrum of x over the second half. Statements from "
-        "/work/shared/model/lubricated-rig-model.md. "
+        "../shared/model/lubricated-rig-model.md (relative to the repository). "
         f"{agree} of {len(rows)} statements agree.",
         "",
         "| section | statement | study | lubrig_ros measured | verdict |",
