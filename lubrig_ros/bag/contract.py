@@ -26,6 +26,7 @@ _CONTRACT: tuple[tuple[str, str, int, bool], ...] = (
     ("state", "sensor_msgs/msg/JointState", 1000, False),
     ("/clock", "rosgraph_msgs/msg/Clock", 1000, False),
     ("run_config", "std_msgs/msg/String", 1, True),
+    ("run_complete", "std_msgs/msg/Bool", 1, True),
     ("dominant_frequency", "std_msgs/msg/Float64", 10, False),
     ("wavelet_power", "std_msgs/msg/Float64MultiArray", 10, False),
     ("wavelet_image", "sensor_msgs/msg/Image", 10, False),

@@ -20,12 +20,11 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from ..bag.contract import DEFAULT_NAMESPACE, resolve
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, default_config, load_case, load_config
 
-DEFAULT_NAMESPACE = "/lubrig"
-
-# Topic names relative to the namespace.
+# Topic names relative to the namespace (the contract with types and QoS: bag/contract.py).
 BAND_VELOCITY = "band_velocity"
 DISPLACEMENT = "displacement"
 VELOCITY = "velocity"
@@ -74,9 +73,7 @@ LATCHED_QOS = QoSProfile(
 
 def topic(namespace: str, name: str) -> str:
     """Absolute topic name under the namespace (names starting with '/' are kept)."""
-    if name.startswith("/"):
-        return name
-    return f"{namespace.rstrip('/')}/{name}" if namespace.strip("/") else f"/{name}"
+    return resolve(name, namespace)
 
 
 def check_namespace(value: str) -> str:
