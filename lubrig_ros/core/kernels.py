@@ -262,6 +262,12 @@ def _radau_step(
     det = diag * (diag - j_ww) - j_wx
     e_x = ((diag - j_ww) * r_x + r_w) / det
     e_w = (diag * r_w + j_wx * r_x) / det
+    if j_ww > 0.0:
+        # Negative effective damping (zone 2, e.g. the onset of a slip): the filter above is made
+        # for decaying stiff modes and would shrink the estimate of a fast-growing one. Take the
+        # unfiltered estimate h/MU_REAL (f + Z^T E / h) when it is larger.
+        e_x = max(abs(e_x), abs(r_x / diag))
+        e_w = max(abs(e_w), abs(r_w / diag))
     sx = atol_x + rtol * max(abs(x), abs(x_new))
     sw = atol_w + rtol * max(abs(w), abs(w_new))
     err = math.sqrt(0.5 * ((e_x / sx) ** 2 + (e_w / sw) ** 2))
