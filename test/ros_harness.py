@@ -29,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 PYTHON = sys.executable
@@ -49,14 +50,21 @@ def ros_env(domain_id: int | None = None) -> dict[str, str]:
 class RosProcess:
     """A started process with logs in files and clean-stop helpers."""
 
-    def __init__(self, argv: list[str], env: dict[str, str], cwd: str | Path | None = None) -> None:
+    def __init__(
+        self,
+        argv: list[str],
+        env: dict[str, str],
+        cwd: str | Path | None = None,
+        preexec_fn: Callable[[], None] | None = None,
+    ) -> None:
         self.argv = argv
         self._dir = Path(tempfile.mkdtemp(prefix="ros_harness_"))
         self.stdout_path = self._dir / "stdout.log"
         self.stderr_path = self._dir / "stderr.log"
         with open(self.stdout_path, "wb") as out, open(self.stderr_path, "wb") as err:
             self.popen = subprocess.Popen(
-                argv, env=env, cwd=cwd, stdout=out, stderr=err, start_new_session=True
+                argv, env=env, cwd=cwd, stdout=out, stderr=err, start_new_session=True,
+                preexec_fn=preexec_fn,
             )
 
     @property

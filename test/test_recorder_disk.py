@@ -11,8 +11,6 @@ import hashlib
 import json
 import resource
 import signal
-import subprocess
-import tempfile
 from pathlib import Path
 
 import pytest
@@ -36,14 +34,7 @@ class LimitedProcess(RosProcess):
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
             signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of being killed
 
-        self.argv = argv
-        self._dir = Path(tempfile.mkdtemp(prefix="ros_harness_"))
-        self.stdout_path = self._dir / "stdout.log"
-        self.stderr_path = self._dir / "stderr.log"
-        with open(self.stdout_path, "wb") as out, open(self.stderr_path, "wb") as err:
-            self.popen = subprocess.Popen(
-                argv, env=env, stdout=out, stderr=err, start_new_session=True, preexec_fn=cap
-            )
+        super().__init__(argv, env, preexec_fn=cap)
 
 
 def _sha(path: Path) -> str:
