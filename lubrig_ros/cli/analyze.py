@@ -17,7 +17,7 @@ import numpy as np
 from scipy.signal import decimate
 
 from ..core.wavelet import DEFAULT_DJ, MIN_SAMPLES, cwt, dominant_components, fourier_factor
-from .common import write_json
+from .common import parse_finite, write_json
 from .main import CommandError
 
 COLUMNS = (
@@ -33,14 +33,11 @@ MAX_POWER_POINTS = 30_000_000
 
 
 def _number(text: str, option: str, low: float = 0.0, inclusive: bool = True) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise ValueError(f"{option} {text!r} is not a number") from None
-    ok = value >= low if inclusive else value > low
-    if not math.isfinite(value) or not ok:
-        sign = ">=" if inclusive else ">"
-        raise ValueError(f"{option} {text!r} is not valid; expected a finite number {sign} {low:g}")
+    sign = ">=" if inclusive else ">"
+    what = f"a finite number {sign} {low:g}"
+    value = parse_finite(option, text, what)
+    if not (value >= low if inclusive else value > low):
+        raise ValueError(f"{option} {text!r} is not valid; expected {what}")
     return value
 
 
