@@ -40,6 +40,16 @@ def _coupling(rig: RigParameters) -> float:
     return rig.angular_frequency * rig.velocity_factor * rig.friction.normal_force / rig.stiffness
 
 
+def _effective(damping_ratio: float | np.ndarray, rig: RigParameters, slope: np.ndarray) -> np.ndarray:
+    """Hyper-time damping coefficient 2ζ + ω0 γ N μ'/k of the linearized rig."""
+    return 2.0 * damping_ratio + _coupling(rig) * slope
+
+
+def _critical(rig: RigParameters, slope: np.ndarray) -> np.ndarray:
+    """ζ_crit = max(0, −ω0 γ N μ'/(2k)) for dμ/dv = slope."""
+    return np.maximum(0.0, -_coupling(rig) * slope / 2.0)
+
+
 def equilibrium_displacement(band_velocity: np.typing.ArrayLike, rig: RigParameters) -> np.ndarray:
     """Static equilibrium x0 = μ(v_band) N / k in m."""
     mu = friction_coefficient(band_velocity, rig.friction)
@@ -58,8 +68,7 @@ def critical_damping_ratio(
     band_velocity: np.typing.ArrayLike, rig: RigParameters
 ) -> np.ndarray:
     """ζ_crit(v_band) = max(0, −ω0 γ N μ'/(2k)): damping above it stabilizes the equilibrium."""
-    slope = friction_slope(band_velocity, rig.friction)
-    return np.maximum(0.0, -_coupling(rig) * slope / 2.0)
+    return _critical(rig, friction_slope(band_velocity, rig.friction))
 
 
 def linear_stability(band_velocity: float, rig: RigParameters) -> LinearStability:
@@ -69,7 +78,7 @@ def linear_stability(band_velocity: float, rig: RigParameters) -> LinearStabilit
         raise ValueError(f"band_velocity={band_velocity!r} must be a finite velocity > 0 m/s")
     mu = float(friction_coefficient(v, rig.friction))
     slope = float(friction_slope(v, rig.friction))
-    effective = 2.0 * rig.damping_ratio + _coupling(rig) * slope
+    effective = float(_effective(rig.damping_ratio, rig, slope))
     return LinearStability(
         band_velocity=v,
         zone=int(friction_zone(v, rig)),
@@ -77,7 +86,7 @@ def linear_stability(band_velocity: float, rig: RigParameters) -> LinearStabilit
         friction_slope=slope,
         equilibrium_displacement=mu * rig.friction.normal_force / rig.stiffness,
         effective_damping=effective,
-        critical_damping_ratio=max(0.0, -_coupling(rig) * slope / 2.0),
+        critical_damping_ratio=float(_critical(rig, slope)),
         stable=bool(effective > 0.0),
     )
 
@@ -98,14 +107,16 @@ def unstable_intervals(
     rig = replace(rig, damping_ratio=damping_ratio)
     decades = np.log10(v_max) - np.log10(v_min)
     v = np.logspace(np.log10(v_min), np.log10(v_max), int(decades * points_per_decade) + 1)
-    effective = 2.0 * damping_ratio + _coupling(rig) * friction_slope(v, rig.friction)
-    unstable = effective <= 0.0
+    def effective(velocity: float | np.ndarray) -> np.ndarray:
+        return _effective(damping_ratio, rig, friction_slope(velocity, rig.friction))
+
+    unstable = effective(v) <= 0.0
 
     def refine(lo: float, hi: float) -> float:
-        f_lo = 2.0 * damping_ratio + _coupling(rig) * float(friction_slope(lo, rig.friction))
+        f_lo = float(effective(lo))
         for _ in range(80):
             mid = np.sqrt(lo * hi)
-            f_mid = 2.0 * damping_ratio + _coupling(rig) * float(friction_slope(mid, rig.friction))
+            f_mid = float(effective(mid))
             if (f_mid <= 0.0) == (f_lo <= 0.0):
                 lo, f_lo = mid, f_mid
             else:
@@ -131,4 +142,4 @@ def stability_map(
     """Boolean grid [ζ, v_band]: True where the equilibrium is linearly stable."""
     slope = friction_slope(np.asarray(band_velocities, dtype=float), rig.friction)
     zeta = np.asarray(damping_ratios, dtype=float)[:, None]
-    return 2.0 * zeta + _coupling(rig) * slope[None, :] > 0.0
+    return _effective(zeta, rig, slope[None, :]) > 0.0
