@@ -91,11 +91,12 @@ class RunConfig:
         return replace(self, rig=replace(self.rig, **rig_changes), **run_changes)
 
 
-def _deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+def deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    """Copy of base with over merged in, mapping by mapping; a 'band' section replaces whole."""
     merged = copy.deepcopy(base)
     for key, value in over.items():
         if isinstance(value, dict) and isinstance(merged.get(key), dict) and key != "band":
-            merged[key] = _deep_merge(merged[key], value)
+            merged[key] = deep_merge(merged[key], value)
         else:
             merged[key] = copy.deepcopy(value)
     return merged
@@ -131,7 +132,7 @@ def from_mapping(data: dict[str, Any], base_dir: Path | None = None) -> RunConfi
     unknown = set(data) - set(SECTIONS)
     if unknown:
         raise ParameterError(f"unknown config section(s) {sorted(unknown)}; valid: {list(SECTIONS)}")
-    merged = _deep_merge(defaults(), data)
+    merged = deep_merge(defaults(), data)
     simulation = dict(merged.get("simulation") or {})
     unknown = set(simulation) - set(SIMULATION_KEYS)
     if unknown:

@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from ..core.params import ParameterError
-from ..core.presets import RunConfig, from_mapping, load_case, read_yaml
+from ..core.presets import RunConfig, deep_merge, from_mapping, load_case, read_yaml
 
 SPEC_KEYS = ("name", "description", "base", "base_case", "design", "samples", "seed", "wavelet", "axes")
 DESIGNS = ("grid", "random", "lhs")
@@ -147,14 +147,7 @@ def base_mapping(spec: dict[str, Any], base_dir: Path | None = None) -> dict[str
     base = spec.get("base") or {}
     if not isinstance(base, dict):
         raise SpecError(f"base={base!r} is not valid; expected a run configuration mapping")
-    merged = copy.deepcopy(start)
-    for section, value in base.items():
-        if isinstance(value, dict) and isinstance(merged.get(section), dict) and section != "band":
-            merged[section] = {**merged[section], **value}
-            if section == "rig" and isinstance(value.get("friction"), dict):
-                merged["rig"]["friction"] = {**start["rig"]["friction"], **value["friction"]}
-        else:
-            merged[section] = copy.deepcopy(value)
+    merged = deep_merge(start, base)
     try:
         config = from_mapping(merged, base_dir=base_dir)
     except ParameterError as exc:
