@@ -14,7 +14,7 @@ from typing import Any
 
 from ..core.friction import friction_coefficient, friction_minimum, friction_peak, friction_slope
 from ..core.params import FrictionParameters
-from .common import NEGATIVE_NUMBER, parse_finite
+from .common import allow_negative_numbers, parse_finite
 
 
 def friction_parameters(choice: str) -> FrictionParameters:
@@ -93,7 +93,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Peak and minimum of μ(v); μ and dμ/dv at --at velocities; --out writes "
         "friction_curve.csv (1e-15…1e-2 m/s) and friction_curve.png.",
     )
-    parser._negative_number_matcher = NEGATIVE_NUMBER  # let "--at -1e-7" through
+    allow_negative_numbers(parser)  # let "--at -1e-7" through
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
         "--at", nargs="+", metavar="V", help="sliding velocities in m/s to evaluate μ and dμ/dv at"

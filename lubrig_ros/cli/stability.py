@@ -13,7 +13,8 @@ from typing import Any
 from ..core.friction import friction_minimum, friction_peak
 from ..core.params import CONVENTIONS, RigParameters
 from ..core.stability import critical_damping_ratio, unstable_intervals
-from .friction import NEGATIVE_NUMBER, friction_parameters, parse_finite
+from .common import allow_negative_numbers, parse_finite
+from .friction import friction_parameters
 
 
 def parse_zeta(text: str) -> float:
@@ -100,7 +101,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Routh–Hurwitz on the linearized rig: unstable band-velocity intervals for "
         "each --zeta; --out writes stability_map.png.",
     )
-    parser._negative_number_matcher = NEGATIVE_NUMBER  # so "--zeta -0.1" reaches validation
+    allow_negative_numbers(parser)  # so "--zeta -0.1" reaches validation
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
         "--zeta",

@@ -30,7 +30,8 @@ def _workers(text: str | None) -> int | None:
 
 def _run(args: argparse.Namespace) -> int:
     workers = _workers(args.workers)
-    if parse_finite("--worker-timeout", args.worker_timeout, "seconds > 0") <= 0:
+    worker_timeout = parse_finite("--worker-timeout", args.worker_timeout, "seconds > 0")
+    if worker_timeout <= 0:
         raise ValueError(f"--worker-timeout {args.worker_timeout!r} must be > 0 s")
     check_scheduler(args.scheduler, workers)
     spec = load_spec(args.spec)  # whole spec validated before DIR is touched
@@ -42,7 +43,7 @@ def _run(args: argparse.Namespace) -> int:
         retry_failed=args.retry_failed,
         figures=not args.no_figures,
         progress=None if args.quiet else sys.stderr,
-        worker_timeout=parse_finite("--worker-timeout", args.worker_timeout, "seconds > 0"),
+        worker_timeout=worker_timeout,
     )
     print(
         f"sweep {spec.name}: {result.total} points ({result.resumed} resumed, {result.computed} computed, "
