@@ -14,6 +14,7 @@ from lubrig_ros import __version__
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
 from lubrig_ros.bag.writer import CONFIG_SIDECAR, RUN_CONFIG_KEY, typestore
+from lubrig_ros.fileio import write_text_atomic
 
 RUN_CONFIG_TOPIC_SUFFIX = "/run_config"
 
@@ -122,12 +123,6 @@ def metadata_dict(
     }
 
 
-def _write_text_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(path)
-
-
 def repair_bag(bag: str | Path, backup: bool = True, force: bool = False) -> RepairReport:
     """Rebuild the MCAP file and metadata.yaml of bag from its intact chunks.
 
@@ -218,6 +213,6 @@ def repair_bag(bag: str | Path, backup: bool = True, force: bool = False) -> Rep
         if not report.backup.exists():
             os.link(mcap_path, report.backup)
     tmp.replace(mcap_path)
-    _write_text_atomic(meta_path, yaml.safe_dump(meta, default_flow_style=False))
+    write_text_atomic(meta_path, yaml.safe_dump(meta, default_flow_style=False))
     report.rewritten = True
     return report

@@ -28,6 +28,7 @@ from rosbags.typesys.store import Typestore
 
 from lubrig_ros import __version__
 from lubrig_ros.bag.errors import BagError
+from lubrig_ros.fileio import write_text_atomic
 
 RUN_CONFIG_KEY = "lubrig_ros.run_config"
 VERSION_KEY = "lubrig_ros.version"
@@ -135,12 +136,7 @@ class BagWriter:
         self._writer.set_custom_data(RUN_CONFIG_KEY, text)
 
     def _write_sidecar(self, text: str) -> None:
-        tmp = self.path / (CONFIG_SIDECAR + ".tmp")
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        tmp.replace(self.path / CONFIG_SIDECAR)
+        write_text_atomic(self.path / CONFIG_SIDECAR, text, durable=True)
 
     def add_topic(self, topic: str, msgtype: str, depth: int = 1000, latched: bool = False) -> None:
         """Declare a topic (done implicitly by write with default QoS)."""
