@@ -8,12 +8,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 from rosbags.rosbag2 import Reader
 
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
-from lubrig_ros.bag.repair import find_mcap
+from lubrig_ros.bag.repair import bag_information, find_mcap
 from lubrig_ros.bag.writer import RUN_CONFIG_KEY, typestore
 
 
@@ -79,10 +78,7 @@ def _load_metadata(bag_dir: Path) -> dict[str, object]:
             f"bag {str(bag_dir)!r} has no metadata.yaml (recording not finalized?): "
             f"run `lubrig bag repair {bag_dir}`"
         )
-    try:
-        return dict(yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"])
-    except (yaml.YAMLError, KeyError, TypeError) as exc:
-        raise BagError(f"bag {str(bag_dir)!r}: metadata.yaml is unreadable ({exc})") from exc
+    return bag_information(bag_dir)
 
 
 def check_bag(bag: str | Path) -> BagSummary:

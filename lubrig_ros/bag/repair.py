@@ -33,6 +33,14 @@ class RepairReport:
     backup: Path | None = None
 
 
+def bag_information(bag_dir: Path) -> dict[str, object]:
+    """The rosbag2_bagfile_information mapping of bag_dir/metadata.yaml; BagError if unreadable."""
+    try:
+        return dict(yaml.safe_load((bag_dir / "metadata.yaml").read_text())["rosbag2_bagfile_information"])
+    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError) as exc:
+        raise BagError(f"bag {str(bag_dir)!r}: metadata.yaml is unreadable ({exc})") from exc
+
+
 def find_mcap(bag: str | Path) -> Path:
     """The .mcap file of a bag directory (from metadata.yaml, else the only *.mcap), or a file."""
     bag = Path(bag)
@@ -40,13 +48,10 @@ def find_mcap(bag: str | Path) -> Path:
         return bag
     if not bag.is_dir():
         raise BagError(f"bag {str(bag)!r} does not exist: give a bag directory or an .mcap file")
-    meta = bag / "metadata.yaml"
-    if meta.is_file():
-        try:
-            info = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]
-            files = info["relative_file_paths"]
-        except (yaml.YAMLError, KeyError, TypeError) as exc:
-            raise BagError(f"bag {str(bag)!r}: metadata.yaml is unreadable ({exc})") from exc
+    if (bag / "metadata.yaml").is_file():
+        files = bag_information(bag).get("relative_file_paths")
+        if not isinstance(files, list):
+            raise BagError(f"bag {str(bag)!r}: metadata.yaml lists no relative_file_paths")
         if len(files) != 1 or not str(files[0]).endswith(".mcap"):
             raise BagError(f"bag {str(bag)!r}: expected one .mcap file, metadata lists {files}")
         return bag / files[0]
@@ -135,10 +140,9 @@ def repair_bag(bag: str | Path, backup: bool = True, force: bool = False) -> Rep
     meta_path = bag_dir / "metadata.yaml"
     old_custom: dict[str, str] = {}
     if meta_path.is_file():
-        try:
-            old = yaml.safe_load(meta_path.read_text())["rosbag2_bagfile_information"]
-            old_custom = dict(old.get("custom_data") or {})
-        except (yaml.YAMLError, KeyError, TypeError, AttributeError):
+        try:  # a damaged metadata.yaml is what repair replaces: keep what can be read of it
+            old_custom = dict(bag_information(bag_dir).get("custom_data") or {})
+        except (BagError, TypeError, ValueError):
             old_custom = {}
 
     result = ScanResult()
