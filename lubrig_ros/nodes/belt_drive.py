@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import fields
 from typing import Any
 
 from rcl_interfaces.msg import SetParametersResult
@@ -21,20 +22,17 @@ from std_msgs.msg import Float64
 
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
-from ..core.profiles import BandProfile, profile_from_dict, profile_to_dict
+from ..core.profiles import PROFILE_KINDS, BandProfile, profile_from_dict, profile_to_dict
 from . import common
 
-#: profile.* parameters, their kind(s) and default values (units: m/s, s, Hz, rad).
+#: profile.* parameters, their kind(s) and default values (units: m/s, s, Hz, rad), taken from the
+#: core's profile classes; a table profile is given by the path of its CSV.
 PROFILE_FIELDS: dict[str, tuple[tuple[str, ...], Any]] = {
-    "velocity": (("constant",), 1e-7),
-    "low_velocity": (("cycle",), 1e-7),
-    "high_velocity": (("cycle",), 2e-7),
-    "plateau_time": (("cycle",), 0.01),
-    "ramp_time": (("cycle",), 0.2),
-    "mean_velocity": (("sine",), 1.5e-7),
-    "amplitude": (("sine",), 5e-8),
-    "frequency": (("sine",), 1.0),
-    "phase": (("sine",), 0.0),
+    **{
+        f.name: ((kind,), f.default)
+        for kind in ("constant", "cycle", "sine")
+        for f in fields(PROFILE_KINDS[kind])
+    },
     "path": (("table",), ""),
 }
 
