@@ -19,6 +19,7 @@ import numpy as np
 from ..core.presets import RunConfig, from_mapping
 from ..core.run import simulate, summarize
 from ..core.stability import linear_stability
+from ..core.wavelet import dominant_frequencies
 from .spec import Point
 
 #: summarize() keys copied into the table unchanged (so a sweep point equals a direct run exactly).
@@ -42,11 +43,7 @@ WAVELET_COMPONENTS = 3
 
 
 def wavelet_columns(config: RunConfig, displacement: Any) -> dict[str, Any]:
-    """Wavelet dominant components of the stationary half of the displacement.
-
-    Seam: uses lubrig_ros.core.wavelet.dominant_frequencies when it is importable; without it the
-    wavelet columns are null and the spectral (FFT) dominant frequency of summarize() remains.
-    """
+    """Wavelet dominant components of the stationary half of the displacement."""
     empty: dict[str, Any] = {
         "wavelet_frequency_hz": None,
         "wavelet_power": None,
@@ -57,10 +54,6 @@ def wavelet_columns(config: RunConfig, displacement: Any) -> dict[str, Any]:
     }
     if displacement is None:
         return empty
-    try:
-        from ..core.wavelet import dominant_frequencies
-    except ImportError as exc:  # pragma: no cover - the module exists in this tree
-        return {**empty, "wavelet_error": f"wavelet module unavailable: {exc}"}
     try:
         components = dominant_frequencies(
             displacement,
