@@ -11,8 +11,8 @@ import pytest
 import yaml
 from ros_harness import ros_env, run_module, start_module
 
+from lubrig_ros.app.contract import plant_topics
 from lubrig_ros.bag import check_bag, read_arrays, repair_bag
-from lubrig_ros.bag.contract import plant_topics
 from lubrig_ros.bag.crosscheck import read_mcap, read_rosbags
 
 pytestmark = pytest.mark.ros

@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 from ros_harness import PYTHON, RosProcess, ros_env, run_module
 
+from lubrig_ros.app.contract import plant_topics
 from lubrig_ros.bag import BagError, check_bag, repair_bag
-from lubrig_ros.bag.contract import plant_topics
 from lubrig_ros.bag.crosscheck import read_mcap, read_rosbags
 from lubrig_ros.bag.synthetic import START_NS
 

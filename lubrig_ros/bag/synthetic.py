@@ -17,19 +17,9 @@ import sys
 import time
 from collections.abc import Sequence
 
-from lubrig_ros.bag.contract import DEFAULT_NAMESPACE, documented_topics, plant_topics, resolve
+from lubrig_ros.app.contract import DEFAULT_NAMESPACE, documented_topics, plant_topics, resolve
 
 START_NS = 1_000_000_000  # rig time of sample 0
-
-
-def _qos(depth: int, latched: bool):
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-    return QoSProfile(
-        depth=depth,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
-    )
 
 
 def publish(args: argparse.Namespace) -> int:
@@ -39,6 +29,8 @@ def publish(args: argparse.Namespace) -> int:
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
 
+    from lubrig_ros.nodes.interfaces import qos_profile
+
     rclpy.init(args=[])
     node = rclpy.create_node("lubrig_synthetic_plant")
     specs = plant_topics(args.namespace)
@@ -46,7 +38,7 @@ def publish(args: argparse.Namespace) -> int:
     for name, spec in specs.items():
         cls = {"std_msgs/msg/Float64": Float64, "sensor_msgs/msg/JointState": JointState,
                "rosgraph_msgs/msg/Clock": Clock}[spec.msgtype]
-        pubs[name] = node.create_publisher(cls, name, _qos(spec.depth, spec.latched))
+        pubs[name] = node.create_publisher(cls, name, qos_profile(spec.qos))
     deadline = time.monotonic() + args.wait_subscribers
     while time.monotonic() < deadline:
         if all(p.get_subscription_count() >= args.subscribers for p in pubs.values()):
@@ -57,9 +49,9 @@ def publish(args: argparse.Namespace) -> int:
         return 3
     time.sleep(args.settle)
     ns = args.namespace
-    floats = [(pubs[resolve(n, ns)], Float64()) for n in
+    floats = [(pubs[resolve(ns, n)], Float64()) for n in
               ("displacement", "velocity", "friction_coefficient", "band_velocity")]
-    state_pub, clock_pub = pubs[resolve("state", ns)], pubs["/clock"]
+    state_pub, clock_pub = pubs[resolve(ns, "state")], pubs["/clock"]
     state = JointState(name=["mass"])
     clock = Clock()
     period = 1.0 / args.rate
@@ -90,7 +82,7 @@ def listen(args: argparse.Namespace) -> int:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
-    from lubrig_ros.nodes.recorder import message_class
+    from lubrig_ros.nodes.interfaces import message_class, qos_profile
 
     rclpy.init(args=[])
     node = rclpy.create_node("lubrig_synthetic_listener")
@@ -111,9 +103,9 @@ def listen(args: argparse.Namespace) -> int:
 
     subs = []
     for name in args.topics:
-        spec = docs[resolve(name, args.namespace)]
+        spec = docs[resolve(args.namespace, name)]
         subs.append(node.create_subscription(
-            message_class(spec.msgtype), spec.name, make_cb(spec.name), _qos(spec.depth, spec.latched)
+            message_class(spec.msgtype), spec.name, make_cb(spec.name), qos_profile(spec.qos)
         ))
     executor = SingleThreadedExecutor()
     executor.add_node(node)

@@ -18,13 +18,14 @@ from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..bag.contract import DEFAULT_NAMESPACE, resolve
+from ..app import contract
+from ..app.contract import DEFAULT_NAMESPACE, DEFAULT_REALTIME_PRIORITY, MODES
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, default_config, load_case, load_config
+from .interfaces import qos_profile
 
-# Topic names relative to the namespace (the contract with types and QoS: bag/contract.py).
+# Topic names relative to the namespace (the contract with types and QoS: app/contract.py).
 BAND_VELOCITY = "band_velocity"
 DISPLACEMENT = "displacement"
 VELOCITY = "velocity"
@@ -43,50 +44,20 @@ PAUSE_SERVICE = "plant/pause"
 CLOCK = "/clock"
 DIAGNOSTICS = "/diagnostics"
 
-MODES = ("sim", "realtime", "rig_in_loop")
-#: Largest |band velocity| the plant accepts from the band topic, m/s (rig in the loop).
-BAND_VELOCITY_LIMIT = 1e-2
-DEFAULT_REALTIME_PRIORITY = 50
-
-#: Sample streams (band, plant outputs, /clock): reliable, deep queue, volatile.
-STREAM_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-#: Analysis outputs and diagnostics: reliable, keep_last 10.
-ANALYSIS_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=10,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-#: Latched once-per-run messages (run configuration, run complete).
-LATCHED_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+#: rclpy QoS profiles of the contract's plain-data QoS (app/contract.py).
+STREAM_QOS = qos_profile(contract.STREAM_QOS)
+ANALYSIS_QOS = qos_profile(contract.ANALYSIS_QOS)
+LATCHED_QOS = qos_profile(contract.LATCHED_QOS)
 
 
 def topic(namespace: str, name: str) -> str:
     """Absolute topic name under the namespace (names starting with '/' are kept)."""
-    return resolve(name, namespace)
+    return contract.resolve(namespace, name)
 
 
 def check_namespace(value: str) -> str:
-    """Validate a topic namespace such as /lubrig."""
-    if not value.startswith("/") or any(
-        not (part and (part[0].isalpha() or part[0] == "_") and part.replace("_", "a").isalnum())
-        for part in value.strip("/").split("/")
-        if value.strip("/")
-    ):
-        raise ParameterError(
-            f"topic_namespace={value!r} is not valid; expected an absolute ROS name such as '/lubrig'"
-        )
-    return value
+    """Validate a topic namespace such as /lubrig (ROS 2's rules: app.contract.validate_namespace)."""
+    return contract.validate_namespace(value, "topic_namespace")
 
 
 def check_mode(value: str) -> str:

@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import bisect
 import contextlib
-import importlib
 import math
 import multiprocessing as mp
 import os
@@ -33,7 +32,8 @@ from pathlib import Path
 
 import yaml
 
-from lubrig_ros.bag.contract import DEFAULT_NAMESPACE, TopicSpec, documented_topics, resolve
+from lubrig_ros.app.contract import DEFAULT_NAMESPACE, Topic, documented_topics, resolve
+from lubrig_ros.app.contract import select_topics as _select_topics
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.repair import cdr_string
 from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, leading_stamp_ns, serialize_string
@@ -43,28 +43,18 @@ BATCH_PERIOD_S = 0.02
 SIM_HOLD_NS = 300_000_000  # wait this long for /clock before stamping an unstamped message
 
 
-def message_class(msgtype: str) -> type:
-    """The rclpy message class of "pkg/msg/Name"."""
-    parts = msgtype.split("/")
-    if len(parts) != 3:
-        raise ValueError(f"message type {msgtype!r} is invalid: expected pkg/msg/Name")
-    try:
-        return getattr(importlib.import_module(f"{parts[0]}.{parts[1]}"), parts[2])
-    except (ImportError, AttributeError) as exc:
-        raise ValueError(f"message type {msgtype!r} is not installed") from exc
-
-
 # ----------------------------------------------------------------------------- worker process
 
 
-def _worker(wid: int, specs: list[TopicSpec], first_index: int, out: mp.Queue, stop: mp.Event) -> None:
+def _worker(wid: int, specs: list[Topic], first_index: int, out: mp.Queue, stop: mp.Event) -> None:
     """Subscribe to specs (raw) and ship batches of (index, recv_ns, bytes) to out."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent coordinates the stop
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from rclpy.signals import SignalHandlerOptions
+
+    from lubrig_ros.nodes.interfaces import message_class, qos_profile
 
     parent = os.getppid()
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
@@ -79,15 +69,11 @@ def _worker(wid: int, specs: list[TopicSpec], first_index: int, out: mp.Queue, s
         return cb
 
     subs = []
-    for i, spec in enumerate(specs):
-        qos = QoSProfile(
-            depth=spec.depth,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL if spec.latched else DurabilityPolicy.VOLATILE,
-        )
+    for i, spec in enumerate(specs):  # QoS from the contract (app/contract.py)
         subs.append(
             node.create_subscription(
-                message_class(spec.msgtype), spec.name, make_cb(first_index + i), qos, raw=True
+                message_class(spec.msgtype), spec.name, make_cb(first_index + i),
+                qos_profile(spec.qos), raw=True,
             )
         )
 
@@ -119,7 +105,7 @@ def _worker(wid: int, specs: list[TopicSpec], first_index: int, out: mp.Queue, s
 
 @dataclass
 class _Topic:
-    spec: TopicSpec
+    spec: Topic
     stamped: bool
     is_clock: bool
 
@@ -155,19 +141,19 @@ class Recorder:
     def __init__(
         self,
         output: Path,
-        specs: list[TopicSpec],
+        specs: list[Topic],
         workers: int,
         run_config: str | None,
         use_sim_time: bool,
         flush_interval: float,
         namespace: str = DEFAULT_NAMESPACE,
     ) -> None:
-        config_spec = documented_topics(namespace)[resolve("run_config", namespace)]
+        config_spec = documented_topics(namespace)[resolve(namespace, "run_config")]
         if run_config is not None:  # the given configuration is written, not subscribed
             specs = [s for s in specs if s.name != config_spec.name]
         # In sim mode only the plant's state and /clock carry rig time in their stamps; other
         # headers (diagnostics) may hold wall time, so they are placed by the /clock stream.
-        rig_stamped = {resolve("state", namespace)}
+        rig_stamped = {resolve(namespace, "state")}
         self.topics = [
             _Topic(
                 s,
@@ -357,23 +343,12 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def select_topics(namespace: str, topics: Sequence[str] | None) -> list[TopicSpec]:
-    """TopicSpecs of the selection; every name must be in the documented contract."""
-    docs = documented_topics(namespace)
-    if not topics:
-        return list(docs.values())
-    specs = []
-    for name in topics:
-        full = resolve(name, namespace)
-        if full not in docs:
-            raise ValueError(
-                f"topic {name!r} is not in the topic contract; valid: {', '.join(sorted(docs))}"
-            )
-        specs.append(docs[full])
-    return specs
+def select_topics(namespace: str, topics: Sequence[str] | None) -> list[Topic]:
+    """Topics of the selection (all documented ones if none); every name must be in the contract."""
+    return _select_topics(namespace, list(topics) if topics else None)
 
 
-def auto_workers(specs: Sequence[TopicSpec]) -> int:
+def auto_workers(specs: Sequence[Topic]) -> int:
     """Two high-rate (depth 1000) topics per worker; low-rate topics go along."""
     fast = sum(1 for s in specs if s.depth >= 1000)
     return max(1, min(4, math.ceil(fast / 2)))

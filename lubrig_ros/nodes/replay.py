@@ -15,7 +15,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from lubrig_ros.bag.contract import DEFAULT_NAMESPACE, documented_topics, resolve
+from lubrig_ros.app.contract import DEFAULT_NAMESPACE, STREAM_QOS, documented_topics, resolve
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.reader import check_bag, read_messages
 from lubrig_ros.cli.common import run_script
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     summary = check_bag(args.bag)
     types = {t.name: t.msgtype for t in summary.topics if t.count}
     if args.topics:
-        wanted = [resolve(n, args.namespace) for n in args.topics]
+        wanted = [resolve(args.namespace, n) for n in args.topics]
         unknown = [n for n in wanted if n not in types]
         if unknown:
             raise ValueError(
@@ -63,11 +63,10 @@ def run(args: argparse.Namespace) -> int:
         types.pop("/clock", None)
 
     import rclpy
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from rclpy.signals import SignalHandlerOptions
     from rosgraph_msgs.msg import Clock
 
-    from lubrig_ros.nodes.recorder import message_class
+    from lubrig_ros.nodes.interfaces import message_class, qos_profile
 
     stop = [False]
 
@@ -81,15 +80,11 @@ def run(args: argparse.Namespace) -> int:
     docs = documented_topics(args.namespace)
     pubs = {}
     for name, msgtype in types.items():
-        spec = docs.get(name)
-        qos = QoSProfile(
-            depth=spec.depth if spec else 1000,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL if spec and spec.latched
-            else DurabilityPolicy.VOLATILE,
-        )
+        spec = docs.get(name)  # QoS from the contract; topics outside it as sample streams
+        qos = qos_profile(spec.qos if spec else STREAM_QOS)
         pubs[name] = node.create_publisher(message_class(msgtype), name, qos)
-    clock_pub = node.create_publisher(Clock, "/clock", 1000) if args.clock else None
+    clock_qos = qos_profile(docs["/clock"].qos)
+    clock_pub = node.create_publisher(Clock, "/clock", clock_qos) if args.clock else None
     deadline = time.monotonic() + args.wait_for_subscribers
     while time.monotonic() < deadline and not stop[0]:
         if all(p.get_subscription_count() > 0 for p in pubs.values()):

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..app.contract import DEFAULT_NAMESPACE, resolve, validate_namespace
 from ..bag import BagError, bag_info, read_arrays
-from ..bag.contract import DEFAULT_NAMESPACE, resolve, validate_namespace
 from ..core.integrator import Trajectory
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
@@ -80,7 +80,7 @@ def trajectory_from_bag(bag: str | Path, namespace: str | None = None) -> tuple[
     if namespace is None:
         namespace = bag_namespace(bag)
     try:
-        state_topic, friction_topic, band_topic = (resolve(n, namespace) for n in (STATE, FRICTION, BAND))
+        state_topic, friction_topic, band_topic = (resolve(namespace, n) for n in (STATE, FRICTION, BAND))
     except ValueError as exc:
         raise ReportError(str(exc)) from None
     try:

@@ -1,0 +1,467 @@
+"""The rig's ROS interface as data: topics, services, QoS and node parameters (no ROS import).
+
+Every other place derives from this module: the nodes create their publishers, subscriptions,
+services and parameters from it, the recorder and replay take their topic list and QoS from it,
+and the tables in README.md, docs/topics.md and docs/nodes.md are generated from it
+(lubrig_ros/app/contract_docs.py; test/test_contract.py keeps them in sync).
+
+Names are stored RELATIVE (``band_velocity``, ``plant/reset``) and resolved against a namespace
+(today's default ``/lubrig``) by `resolve`; only the ROS-wide standard topics ``/clock`` and
+``/diagnostics`` are absolute. Message and service types are strings ("std_msgs/msg/Float64"),
+QoS is plain data (`QoS`); the ROS adapters turn them into rclpy objects (nodes/qos.py).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, fields, replace
+from typing import Any, Literal
+
+from ..core.params import CONVENTIONS, FrictionParameters, ParameterError
+
+DEFAULT_NAMESPACE = "/lubrig"
+#: Longest namespace ROS 2 accepts (rmw: RMW_NAMESPACE_MAX_NAME_LENGTH; measured with rclpy: 245).
+NAMESPACE_MAX_LENGTH = 245
+MODES: tuple[str, ...] = ("sim", "realtime", "rig_in_loop")
+
+# ----------------------------------------------------------------------------------- names
+
+_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+
+
+def _name_problem(name: str, *, namespace: bool) -> str | None:
+    """Why `name` breaks ROS 2's rules for a namespace (or a topic/service name), else None."""
+    kind = "namespace" if namespace else "name"
+    if not name:
+        return f"a {kind} must not be empty"
+    if namespace and not name.startswith("/"):
+        return "a namespace must be absolute (start with '/')"
+    bad = sorted({c for c in name if not (c.isascii() and (c.isalnum() or c in "_/"))})
+    if bad:
+        return f"a {kind} may hold only letters, digits, '_' and '/' (not {''.join(bad)!r})"
+    if "//" in name:
+        return f"a {kind} must not contain '//'"
+    if name.endswith("/") and name != "/":
+        return f"a {kind} must not end with '/' (unless it is just '/')"
+    if not namespace and name == "/":
+        return "a name must not be just '/'"
+    tokens = [t for t in name.split("/") if t]
+    if any(not _TOKEN.match(t) for t in tokens):
+        return f"no token of a {kind} may start with a digit"
+    if namespace and len(name) > NAMESPACE_MAX_LENGTH:
+        return f"a namespace may have at most {NAMESPACE_MAX_LENGTH} characters (has {len(name)})"
+    return None
+
+
+def validate_namespace(namespace: str, what: str = "namespace") -> str:
+    """Return `namespace` if it is a valid ROS 2 namespace, else ParameterError (a ValueError).
+
+    ROS 2's rules (rmw_validate_namespace; test/test_contract.py checks against rclpy's own
+    validator): absolute, only letters, digits, '_' and '/', no '//', no trailing '/' (except
+    the root namespace '/'), no token starting with a digit, at most 245 characters. So
+    '/lubrig', '/rig_2' and '/' are valid; '/rig-2', 'lubrig', '/lubrig/' and '/2rig' are not.
+    """
+    if not isinstance(namespace, str):
+        raise ParameterError(f"{what}={namespace!r} is not valid; expected a string such as '/lubrig'")
+    problem = _name_problem(namespace, namespace=True)
+    if problem:
+        raise ParameterError(
+            f"{what}={namespace!r} is not valid: {problem}; expected an absolute ROS name such as "
+            "'/lubrig' or '/rig_2'"
+        )
+    return namespace
+
+
+def validate_name(name: str, what: str = "name") -> str:
+    """Return a topic or service name (relative or absolute) if ROS 2 accepts it, else ParameterError."""
+    problem = _name_problem(name, namespace=False) if isinstance(name, str) else "not a string"
+    if problem:
+        raise ParameterError(f"{what}={name!r} is not valid: {problem}")
+    return name
+
+
+def resolve(namespace: str, name: str) -> str:
+    """Absolute name of `name` in `namespace` (absolute names are kept), as rcl resolves it."""
+    validate_name(name)
+    if name.startswith("/"):
+        return name
+    namespace = validate_namespace(namespace)
+    return f"{'' if namespace == '/' else namespace}/{name}"
+
+
+# ------------------------------------------------------------------------------------- QoS
+
+Reliability = Literal["reliable", "best_effort"]
+Durability = Literal["volatile", "transient_local"]
+History = Literal["keep_last", "keep_all"]
+
+
+@dataclass(frozen=True)
+class QoS:
+    """A QoS profile as plain data (the names of the rclpy/rmw policies, lower case)."""
+
+    reliability: Reliability = "reliable"
+    durability: Durability = "volatile"
+    history: History = "keep_last"
+    depth: int = 1000
+
+    @property
+    def latched(self) -> bool:
+        """True for transient_local durability: late subscribers get the last message(s)."""
+        return self.durability == "transient_local"
+
+    def describe(self) -> str:
+        """Short text for the documentation tables, e.g. 'reliable, volatile, keep_last 1000'."""
+        history = f"keep_last {self.depth}" if self.history == "keep_last" else "keep_all"
+        return f"{self.reliability}, {self.durability}, {history}"
+
+
+#: Sample streams (band, plant outputs, /clock): reliable, deep queue, volatile.
+STREAM_QOS = QoS(depth=1000)
+#: Analysis outputs and diagnostics.
+ANALYSIS_QOS = QoS(depth=10)
+#: Once-per-run messages (run configuration, run complete), latched.
+LATCHED_QOS = QoS(durability="transient_local", depth=1)
+
+# ---------------------------------------------------------------------------------- topics
+
+OUTPUT_RATE = "output rate"  # = sample_rate: per wall second (realtime), per rig second (sim)
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One topic: name (relative unless ROS-wide), type, QoS, who publishes, rate, unit, meaning."""
+
+    name: str
+    msgtype: str
+    qos: QoS
+    publisher: str
+    rate: str
+    unit: str
+    description: str
+
+    @property
+    def depth(self) -> int:
+        """QoS history depth."""
+        return self.qos.depth
+
+    @property
+    def latched(self) -> bool:
+        """QoS durability transient_local."""
+        return self.qos.latched
+
+    def resolved(self, namespace: str = DEFAULT_NAMESPACE) -> Topic:
+        """The topic with its name resolved in `namespace`."""
+        return replace(self, name=resolve(namespace, self.name))
+
+
+@dataclass(frozen=True)
+class Service:
+    """One service: relative name, type, server node, meaning."""
+
+    name: str
+    srvtype: str
+    server: str
+    description: str
+
+    def resolved(self, namespace: str = DEFAULT_NAMESPACE) -> Service:
+        """The service with its name resolved in `namespace`."""
+        return replace(self, name=resolve(namespace, self.name))
+
+
+def _t(name: str, msgtype: str, qos: QoS, publisher: str, rate: str, unit: str, text: str) -> Topic:
+    return Topic(name, msgtype, qos, publisher, rate, unit, text)
+
+
+TOPICS: tuple[Topic, ...] = (
+    _t("band_velocity", "std_msgs/msg/Float64", STREAM_QOS, "belt_drive or external rig software",
+       OUTPUT_RATE, "m/s", "band velocity v_band"),
+    _t("displacement", "std_msgs/msg/Float64", STREAM_QOS, "plant", OUTPUT_RATE, "m",
+       "displacement x of the mass"),
+    _t("velocity", "std_msgs/msg/Float64", STREAM_QOS, "plant", OUTPUT_RATE, "m/s",
+       "velocity ẋ of the mass"),
+    _t("friction_coefficient", "std_msgs/msg/Float64", STREAM_QOS, "plant", OUTPUT_RATE, "1",
+       "friction coefficient μ(v_rel)"),
+    _t("state", "sensor_msgs/msg/JointState", STREAM_QOS, "plant", OUTPUT_RATE, "SI",
+       'header.stamp = rig time; name ["mass", "band"]; position [x m, belt travel m]; '
+       "velocity [ẋ m/s, v_band m/s this sample was integrated with]; effort [μ·N N, 0]"),
+    _t("/clock", "rosgraph_msgs/msg/Clock", STREAM_QOS, "plant (sim mode only)",
+       "output rate + 5 Hz heartbeat", "s", "rig time"),
+    _t("run_config", "std_msgs/msg/String", LATCHED_QOS, "plant (recorded from the launcher's file)",
+       "once, latched", "YAML", "the full run configuration"),
+    _t("run_complete", "std_msgs/msg/Bool", LATCHED_QOS, "plant", "on change, latched", "1",
+       "false at start and after a reset, true once a sim run reaches its duration"),
+    _t("dominant_frequency", "std_msgs/msg/Float64", ANALYSIS_QOS, "analysis",
+       "1 / publish_period (5 Hz)", "Hz", "strongest wavelet component"),
+    _t("wavelet_power", "std_msgs/msg/Float64MultiArray", ANALYSIS_QOS, "analysis",
+       "1 / publish_period", "1",
+       'newest ≤ max_columns columns of normalized power |W|²/σ², dims ["frequency", "time"] '
+       "(row-major)"),
+    _t("wavelet_image", "sensor_msgs/msg/Image", ANALYSIS_QOS, "analysis", "1 / publish_period",
+       "rgb8", "n_scales × image_width, log power over 4 decades, high frequency on top"),
+    _t("linear_zone", "std_msgs/msg/UInt8", ANALYSIS_QOS, "analysis", "1 / publish_period", "1",
+       "friction zone 1, 2 or 3 at the current band velocity"),
+    _t("critical_damping_ratio", "std_msgs/msg/Float64", ANALYSIS_QOS, "analysis",
+       "1 / publish_period", "1", "ζ_crit at the current band velocity"),
+    _t("oscillation_growing", "std_msgs/msg/Bool", ANALYSIS_QOS, "analysis",
+       "1 / publish_period (once the window is full)", "1", "envelope growth flag"),
+    _t("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", ANALYSIS_QOS, "plant, analysis",
+       "plant 1 / diagnostics_period (1 Hz), analysis 1 / publish_period", "key/values",
+       "plant: `lubrig/plant: timing`, `lubrig/plant: band input`; analysis: `lubrig/analysis: "
+       "linear`, `oscillation`, `stick`, `resonance` (values = core.flags fields)"),
+)
+
+SERVICES: tuple[Service, ...] = (
+    Service("plant/reset", "std_srvs/srv/Trigger", "plant",
+            "rig time back to 0 and the initial state; pending rig-parameter updates applied"),
+    Service("plant/pause", "std_srvs/srv/SetBool", "plant",
+            "true pauses, false resumes (sim: band samples queue up while paused and are "
+            "integrated on resume)"),
+)
+
+#: The plant's high-rate outputs (one message each per sample) plus its band input.
+PLANT_TOPICS: tuple[str, ...] = (
+    "displacement", "velocity", "friction_coefficient", "state", "band_velocity", "/clock",
+)
+
+_BY_NAME: dict[str, Topic] = {t.name: t for t in TOPICS}
+_SERVICES_BY_NAME: dict[str, Service] = {s.name: s for s in SERVICES}
+
+
+def topic(name: str) -> Topic:
+    """The contract's topic by its (relative) name; KeyError naming the valid ones."""
+    try:
+        return _BY_NAME[name]
+    except KeyError:
+        raise KeyError(f"topic {name!r} is not in the contract; valid: {sorted(_BY_NAME)}") from None
+
+
+def service(name: str) -> Service:
+    """The contract's service by its (relative) name."""
+    try:
+        return _SERVICES_BY_NAME[name]
+    except KeyError:
+        valid = sorted(_SERVICES_BY_NAME)
+        raise KeyError(f"service {name!r} is not in the contract; valid: {valid}") from None
+
+
+def documented_topics(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Topic]:
+    """Every topic of the contract resolved in `namespace`, keyed by absolute name."""
+    resolved = (t.resolved(namespace) for t in TOPICS)
+    return {t.name: t for t in resolved}
+
+
+def plant_topics(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Topic]:
+    """The plant's high-rate topics (PLANT_TOPICS) resolved in `namespace`, keyed by absolute name."""
+    resolved = (topic(n).resolved(namespace) for n in PLANT_TOPICS)
+    return {t.name: t for t in resolved}
+
+
+def select_topics(namespace: str, names: list[str] | tuple[str, ...] | None) -> list[Topic]:
+    """The named topics (relative or absolute, all of them if none) resolved in `namespace`.
+
+    ValueError naming a name that is not in the contract and the valid ones.
+    """
+    docs = documented_topics(namespace)
+    if not names:
+        return list(docs.values())
+    selected = []
+    for name in names:
+        full = resolve(namespace, name)
+        if full not in docs:
+            raise ValueError(f"topic {name!r} is not in the topic contract; valid: {', '.join(sorted(docs))}")
+        selected.append(docs[full])
+    return selected
+
+
+# ------------------------------------------------------------------------------ parameters
+
+ParameterType = Literal["double", "integer", "string", "bool"]
+
+
+@dataclass(frozen=True)
+class NodeParameter:
+    """One ROS parameter of a node.
+
+    `default` None means "from the selected run configuration" (`from_config` names the field);
+    `low`/`high` bound numbers (`low_open`: strictly greater than low); `choices` lists the
+    valid strings; `read_only` parameters are fixed at start-up, the others may be set at run time.
+    """
+
+    name: str
+    type: ParameterType
+    default: Any
+    description: str
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    choices: tuple[str, ...] = ()
+    read_only: bool = True
+    from_config: str = ""
+
+    def expected(self) -> str:
+        """What is valid, in words (used in error messages and the docs)."""
+        unit = f" {self.unit}" if self.unit and self.unit not in ("1", "SI") else ""
+        if self.choices:
+            return f"one of {list(self.choices)}"
+        if self.type == "string":
+            return "a string"
+        if self.type == "bool":
+            return "true or false"
+        number = "an integer" if self.type == "integer" else "a finite number"
+        if self.low is not None and self.high is not None:
+            return f"{_num(self.low)}..{_num(self.high)}{unit}"
+        if self.low is not None:
+            return f"{number} {'>' if self.low_open else '>='} {_num(self.low)}{unit}"
+        if self.high is not None:
+            return f"{number} <= {_num(self.high)}{unit}"
+        return number
+
+    def check(self, value: Any) -> Any:
+        """Return `value` if valid for this parameter, else ParameterError naming value and range."""
+        bad = ParameterError(f"{self.name}={value!r} is not valid; expected {self.expected()}")
+        if self.type in ("double", "integer"):
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise bad
+            if self.type == "integer" and not isinstance(value, int):
+                raise bad
+            if not math.isfinite(value):
+                raise bad
+            if self.low is not None and (value < self.low or (self.low_open and value <= self.low)):
+                raise bad
+            if self.high is not None and value > self.high:
+                raise bad
+        elif self.type == "string":
+            if not isinstance(value, str) or (self.choices and value not in self.choices):
+                raise bad
+        elif not isinstance(value, bool):
+            raise bad
+        return value
+
+
+def _num(x: float) -> str:
+    return str(int(x)) if float(x).is_integer() and abs(x) < 1e6 else f"{x:g}"
+
+
+def _p(name: str, type_: ParameterType, default: Any, text: str, **kw: Any) -> NodeParameter:
+    return NodeParameter(name, type_, default, text, **kw)
+
+
+#: Run selection, shared by the three rig nodes (the launcher passes config_file).
+RUN_SELECTION: tuple[NodeParameter, ...] = (
+    _p("case", "integer", 0, "study case 1..10 (0: use config_file or the default)"),
+    _p("config_file", "string", "",
+       "run configuration YAML (the launcher passes the resolved run's file; empty: default)"),
+    _p("topic_namespace", "string", DEFAULT_NAMESPACE, "namespace of all topics"),
+)
+WAIT_FOR_SUBSCRIBER = _p(
+    "wait_for_subscriber", "string", "",
+    "sim: hold the run until a node whose name starts with this (e.g. the recorder, "
+    "'lubrig_recorder') subscribes to every output topic; empty = do not wait",
+)
+DEFAULT_REALTIME_PRIORITY = 50
+REALTIME_PRIORITY = _p(
+    "realtime_priority", "integer", DEFAULT_REALTIME_PRIORITY,
+    "realtime: SCHED_FIFO priority 1..99 of the loop thread so other processes cannot delay its "
+    "ticks; 0 keeps normal scheduling", low=0, high=99,
+)
+#: Largest |band velocity| the plant accepts from the band topic, m/s.
+BAND_VELOCITY_LIMIT = 1e-2
+
+RIG_FIELDS: tuple[str, ...] = ("mass", "natural_frequency", "damping_ratio")
+RIG_UNITS = {"mass": "kg", "natural_frequency": "Hz", "damping_ratio": "1", "normal_force": "N"}
+FRICTION_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(FrictionParameters))
+FRICTION_UNITS = {
+    "shear_modulus": "Pa", "interface_thickness": "m", "interpenetration_thickness": "m",
+    "yield_distance": "m", "thermal_break_time": "s", "reference_activation_time": "s",
+    "reference_velocity": "m/s", "activation_exponent": "1", "reference_viscosity": "Pa·s",
+    "shear_thinning_exponent": "1", "contact_area": "m²", "normal_force": "N",
+}
+
+PLANT_PARAMETERS: tuple[NodeParameter, ...] = (
+    *RUN_SELECTION,
+    _p("mode", "string", "sim", "sim | realtime | rig_in_loop", choices=MODES),
+    _p("sample_rate", "double", None, "output rate", unit="Hz", low=0.0, low_open=True,
+       from_config="simulation.sample_rate"),
+    _p("duration", "double", None, "run length in rig time (sim mode)", unit="s", low=0.0,
+       low_open=True, from_config="simulation.duration"),
+    _p("rtol", "double", None, "integrator relative tolerance; applied at the next reset",
+       low=1e-13, high=1e-2, read_only=False, from_config="simulation.rtol"),
+    _p("initial_perturbation", "double", None, "x(0) = (1 + this) x0; applied at the next reset",
+       read_only=False, from_config="simulation.initial_perturbation"),
+    _p("convention", "string", None,
+       "physical | paper; empty: the run configuration's; applied at the next reset",
+       choices=("", *CONVENTIONS), read_only=False, from_config="rig.convention"),
+    *(
+        _p(f"rig.{n}", "double", None, f"rig {n}; applied at the next reset", unit=RIG_UNITS[n],
+           read_only=False, from_config=f"rig.{n}")
+        for n in RIG_FIELDS
+    ),
+    _p("rig.normal_force", "double", None, "normal force N; applied at the next reset", unit="N",
+       read_only=False, from_config="rig.friction.normal_force"),
+    *(
+        _p(f"friction.{n}", "double", None, f"friction law {n}; applied at the next reset",
+           unit=FRICTION_UNITS.get(n, "SI"), read_only=False, from_config=f"rig.friction.{n}")
+        for n in FRICTION_FIELDS
+        if n != "normal_force"
+    ),
+    _p("band_velocity_limit", "double", BAND_VELOCITY_LIMIT,
+       "largest accepted |v_band|; NaN/inf and larger values are rejected", unit="m/s", low=0.0,
+       low_open=True),
+    _p("stale_timeout", "double", 0.05, "time without good band input before the input is stale",
+       unit="s", low=0.0, low_open=True),
+    WAIT_FOR_SUBSCRIBER,
+    REALTIME_PRIORITY,
+    _p("diagnostics_period", "double", 1.0, "time between /diagnostics", unit="s", low=0.0,
+       low_open=True),
+)
+
+BELT_DRIVE_PARAMETERS: tuple[NodeParameter, ...] = (
+    *RUN_SELECTION,
+    _p("mode", "string", "sim", "sim | realtime", choices=("sim", "realtime")),
+    _p("sample_rate", "double", None, "output rate", unit="Hz", low=0.0, low_open=True,
+       from_config="simulation.sample_rate"),
+    _p("duration", "double", None, "run length (sim mode)", unit="s", low=0.0, low_open=True,
+       from_config="simulation.duration"),
+    _p("flow_window", "integer", 200, "sim: band samples the drive may run ahead of the plant's clock",
+       unit="samples", low=1, high=900),
+    _p("start_delay", "double", 0.5, "wall time to wait once the plant is seen (discovery)", unit="s",
+       low=0.0, high=60.0),
+    WAIT_FOR_SUBSCRIBER,
+    REALTIME_PRIORITY,
+    _p("profile.kind", "string", None, "band profile kind (constant | cycle | sine | table); run time",
+       read_only=False, from_config="band.kind"),
+    _p("profile.<field>", "double", None,
+       "the fields of the profile kinds (core.profiles: velocity; low_velocity, high_velocity, "
+       "plateau_time, ramp_time; mean_velocity, amplitude, frequency, phase) and profile.path "
+       "(string, table CSV); run time, validated by the core profile classes",
+       read_only=False, from_config="band.<field>"),
+)
+
+ANALYSIS_PARAMETERS: tuple[NodeParameter, ...] = (
+    *RUN_SELECTION,
+    _p("convention", "string", "", "physical | paper (empty: from the configuration)",
+       choices=("", *CONVENTIONS)),
+    _p("window", "integer", 2048, "samples in the sliding wavelet window", low=64),
+    _p("n_scales", "integer", 32, "wavelet scales", low=2, high=256),
+    _p("publish_period", "double", 0.2, "wall time between analysis updates", unit="s", low=0.01,
+       high=60.0),
+    _p("image_width", "integer", 256, "pixels of wavelet_image", low=8, high=4096),
+    _p("max_columns", "integer", 64, "newest power columns per wavelet_power message", low=1),
+)
+
+NODE_PARAMETERS: dict[str, tuple[NodeParameter, ...]] = {
+    "belt_drive": BELT_DRIVE_PARAMETERS,
+    "plant": PLANT_PARAMETERS,
+    "analysis": ANALYSIS_PARAMETERS,
+}
+
+
+def parameter(node: str, name: str) -> NodeParameter:
+    """The contract's parameter `name` of `node`; KeyError naming the valid ones."""
+    for p in NODE_PARAMETERS[node]:
+        if p.name == name:
+            return p
+    raise KeyError(f"{node} has no parameter {name!r}; valid: {[p.name for p in NODE_PARAMETERS[node]]}")

@@ -1,0 +1,117 @@
+"""The topic/service/parameter contract (app/contract.py): names, the one namespace validator,
+and the documentation and config/nodes.yaml that must agree with it."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import pytest
+
+from lubrig_ros.app import contract
+from lubrig_ros.core.params import ParameterError
+
+VALID = ["/lubrig", "/", "/rig_2", "/a/b2", "/_", "/A/_x", "/" + "a" * 244]
+INVALID = [
+    "", "lubrig", "/rig-2", "/lubrig/", "/a//b", "/2rig", "/a/2b", "/a b", "/~a", "/ä", "/a.b",
+    "/" + "a" * 245,
+]
+
+
+@pytest.mark.parametrize("namespace", VALID)
+def test_valid_namespaces(namespace):
+    assert contract.validate_namespace(namespace) == namespace
+
+
+@pytest.mark.parametrize("namespace", INVALID)
+def test_invalid_namespaces_name_the_value_and_the_rule(namespace):
+    with pytest.raises(ParameterError) as err:
+        contract.validate_namespace(namespace, "topic_namespace")
+    text = str(err.value)
+    assert f"topic_namespace={namespace!r} is not valid" in text
+    assert "expected an absolute ROS name" in text
+
+
+@pytest.mark.skipif(importlib.util.find_spec("rclpy") is None, reason="rclpy not installed")
+@pytest.mark.parametrize("namespace", VALID + INVALID)
+def test_validator_agrees_with_rclpy(namespace):
+    """Our rules are ROS 2's: rclpy's own validator gives the same verdict on every case."""
+    from rclpy.exceptions import InvalidNamespaceException
+    from rclpy.validate_namespace import validate_namespace
+
+    try:
+        validate_namespace(namespace)
+        ros_ok = True
+    except InvalidNamespaceException:
+        ros_ok = False
+    ours_ok = True
+    try:
+        contract.validate_namespace(namespace)
+    except ParameterError:
+        ours_ok = False
+    assert ours_ok == ros_ok, namespace
+
+
+def test_resolve_relative_and_absolute_names():
+    assert contract.resolve("/lubrig", "band_velocity") == "/lubrig/band_velocity"
+    assert contract.resolve("/rig_2", "plant/reset") == "/rig_2/plant/reset"
+    assert contract.resolve("/", "state") == "/state"
+    assert contract.resolve("/lubrig", "/clock") == "/clock"
+    with pytest.raises(ParameterError, match="rig-2"):
+        contract.resolve("/rig-2", "state")
+    with pytest.raises(ParameterError, match="2x"):
+        contract.resolve("/lubrig", "2x")
+
+
+def test_names_are_relative_except_the_ros_wide_topics():
+    for t in contract.TOPICS:
+        contract.validate_name(t.name)
+        assert t.name.startswith("/") == (t.name in ("/clock", "/diagnostics")), t.name
+    for s in contract.SERVICES:
+        assert not s.name.startswith("/")
+    assert set(contract.PLANT_TOPICS) <= {t.name for t in contract.TOPICS}
+
+
+def test_documented_topics_follow_the_namespace():
+    docs = contract.documented_topics("/rig_b")
+    assert "/rig_b/state" in docs and "/clock" in docs and "/lubrig/state" not in docs
+    assert docs["/rig_b/run_config"].latched and docs["/rig_b/run_config"].depth == 1
+    assert not docs["/rig_b/state"].latched and docs["/rig_b/state"].depth == 1000
+
+
+def test_select_topics_refuses_names_outside_the_contract():
+    assert [t.name for t in contract.select_topics("/lubrig", ["state", "/clock"])] == [
+        "/lubrig/state",
+        "/clock",
+    ]
+    with pytest.raises(ValueError, match="'nope' is not in the topic contract"):
+        contract.select_topics("/lubrig", ["nope"])
+
+
+def test_parameter_check_names_value_and_range():
+    p = contract.parameter("plant", "realtime_priority")
+    assert p.check(0) == 0 and p.check(99) == 99
+    with pytest.raises(ParameterError, match=r"realtime_priority=150 is not valid; expected 0\.\.99"):
+        p.check(150)
+    stale = contract.parameter("plant", "stale_timeout")
+    for bad in (0.0, -1.0, float("nan"), float("inf"), "x", True):
+        with pytest.raises(ParameterError, match="stale_timeout"):
+            stale.check(bad)
+    mode = contract.parameter("belt_drive", "mode")
+    with pytest.raises(ParameterError, match=r"expected one of \['sim', 'realtime'\]"):
+        mode.check("rig_in_loop")
+    window = contract.parameter("analysis", "window")
+    with pytest.raises(ParameterError, match="expected an integer >= 64"):
+        window.check(63)
+    with pytest.raises(ParameterError):
+        window.check(100.0)  # a double for an integer parameter
+
+
+def test_every_parameter_has_a_description_and_a_default_source():
+    for node, params in contract.NODE_PARAMETERS.items():
+        names = [p.name for p in params]
+        assert len(names) == len(set(names)), node
+        for p in params:
+            assert p.description, (node, p.name)
+            assert (p.default is None) == bool(p.from_config), (node, p.name)
+            if p.default is not None:
+                p.check(p.default)  # the default itself is valid
