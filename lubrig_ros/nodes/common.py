@@ -20,9 +20,10 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from ..app.selection import base_config
 from ..bag.contract import DEFAULT_NAMESPACE, resolve
 from ..core.params import ParameterError
-from ..core.presets import RunConfig, default_config, load_case, load_config
+from ..core.presets import RunConfig
 
 # Topic names relative to the namespace (the contract with types and QoS: bag/contract.py).
 BAND_VELOCITY = "band_velocity"
@@ -127,11 +128,7 @@ def declare_run_selection(node: Node) -> RunConfig:
         "topic_namespace", DEFAULT_NAMESPACE, descriptor("namespace of all topics", read_only=True)
     )
     check_namespace(node.get_parameter("topic_namespace").value)
-    if case:
-        return load_case(case)
-    if config_file:
-        return load_config(config_file)
-    return default_config()
+    return base_config(case, config_file)
 
 
 def declare_wait_for_subscriber(node: Node) -> str:

@@ -1,0 +1,1 @@
+"""ROS-free application layer: the facts (contract, run selection, run directory) and sessions."""
