@@ -11,10 +11,10 @@ from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
 from lubrig_ros import __version__
+from lubrig_ros.app.fileio import write_text_atomic
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
 from lubrig_ros.bag.writer import CONFIG_SIDECAR, RUN_CONFIG_KEY, typestore
-from lubrig_ros.fileio import write_text_atomic
 
 RUN_CONFIG_TOPIC_SUFFIX = "/run_config"
 

@@ -27,8 +27,8 @@ from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
 from lubrig_ros import __version__
+from lubrig_ros.app.fileio import write_text_atomic
 from lubrig_ros.bag.errors import BagError
-from lubrig_ros.fileio import write_text_atomic
 
 RUN_CONFIG_KEY = "lubrig_ros.run_config"
 VERSION_KEY = "lubrig_ros.version"

@@ -1,4 +1,7 @@
-"""Helpers shared by the `lubrig` subcommands: number parsing that fails in one clear line."""
+"""Helpers shared by the `lubrig` subcommands: one-line number errors, the run-selection options.
+
+The options (--case | --config, band and rig overrides) map onto app/selection.py's RunSelection.
+"""
 
 from __future__ import annotations
 
@@ -11,7 +14,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..fileio import write_text_atomic
+from ..app.fileio import write_text_atomic
+from ..app.selection import RunSelection
+from ..core.profiles import BandProfile, ConstantBand, RegularCycle, TableBand
 
 # argparse (Python < 3.13) takes "-1e-7" for an option; accept any signed float literal as a value.
 NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
@@ -31,6 +36,75 @@ def parse_finite(option: str, text: str, what: str) -> float:
 def allow_negative_numbers(parser: argparse.ArgumentParser) -> None:
     """Let values such as "-1e-7" reach our own validation instead of argparse's option parsing."""
     parser._negative_number_matcher = NEGATIVE_NUMBER
+
+
+def add_run_source(parser: argparse.ArgumentParser) -> None:
+    """--case N | --config FILE (neither: the default run, config/rig.yaml)."""
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--case", metavar="N", help="study Table 1 case 1..10 (paper convention)")
+    source.add_argument("--config", metavar="FILE", help="run configuration YAML (see config/)")
+
+
+def add_run_selection(parser: argparse.ArgumentParser) -> None:
+    """Options that choose and override a run (`lubrig simulate`)."""
+    add_run_source(parser)
+    band = parser.add_mutually_exclusive_group()
+    band.add_argument("--band-velocity", metavar="V", help="constant band velocity, m/s")
+    band.add_argument("--cycle", nargs=4, metavar=("V1", "V2", "TC", "TRAMP"), help="study band cycle")
+    band.add_argument("--profile", metavar="CSV", help="table of time_s,band_velocity_m_s (piecewise linear)")
+    parser.add_argument("--convention", metavar="C", help="relative-velocity convention: physical | paper")
+    parser.add_argument("--zeta", metavar="Z", help="damping ratio ζ")
+    parser.add_argument("--mass", metavar="KG", help="mass m, kg")
+    parser.add_argument("--natural-frequency", metavar="HZ", help="natural frequency f0, Hz")
+    parser.add_argument("--contact-area", metavar="A", help="corrected | printed | area in m²")
+    parser.add_argument("--duration", metavar="S", help="rig time to simulate, s")
+    parser.add_argument("--sample-rate", metavar="HZ", help="output sample rate, Hz (default 1000)")
+    parser.add_argument("--rtol", metavar="R", help="integrator relative tolerance (default 1e-8)")
+    allow_negative_numbers(parser)
+
+
+def _number(args: argparse.Namespace, name: str, option: str, what: str) -> float | None:
+    text = getattr(args, name, None)
+    return None if text is None else parse_finite(option, text, what)
+
+
+def band_from_args(args: argparse.Namespace) -> BandProfile | None:
+    """The band override of --band-velocity | --cycle | --profile, None without one."""
+    if getattr(args, "band_velocity", None) is not None:
+        return ConstantBand(parse_finite("--band-velocity", args.band_velocity, "a finite velocity in m/s"))
+    if getattr(args, "cycle", None) is not None:
+        names = ("V1", "V2", "TC", "TRAMP")
+        values = [
+            parse_finite(f"--cycle {n}", t, "a finite number") for n, t in zip(names, args.cycle, strict=True)
+        ]
+        return RegularCycle(*values)
+    if getattr(args, "profile", None) is not None:
+        return TableBand.from_csv(args.profile)
+    return None
+
+
+def source_from_args(args: argparse.Namespace) -> RunSelection:
+    """Only the source (--case | --config | default) of the parsed options, no overrides."""
+    config = getattr(args, "config", None)
+    return RunSelection(case=getattr(args, "case", None), config_file=Path(config) if config else None)
+
+
+def selection_from_args(args: argparse.Namespace) -> RunSelection:
+    """The RunSelection of the parsed options (options a subcommand lacks count as not given)."""
+    config = getattr(args, "config", None)
+    return RunSelection(
+        case=getattr(args, "case", None),
+        config_file=Path(config) if config is not None else None,
+        band=band_from_args(args),
+        contact_area=getattr(args, "contact_area", None),
+        convention=getattr(args, "convention", None),
+        damping_ratio=_number(args, "zeta", "--zeta", "a damping ratio >= 0"),
+        mass=_number(args, "mass", "--mass", "a mass > 0 in kg"),
+        natural_frequency=_number(args, "natural_frequency", "--natural-frequency", "a frequency > 0 in Hz"),
+        duration=_number(args, "duration", "--duration", "a duration > 0 in s"),
+        sample_rate=_number(args, "sample_rate", "--sample-rate", "a sample rate > 0 in Hz"),
+        rtol=_number(args, "rtol", "--rtol", "a relative tolerance in [1e-13, 1e-2]"),
+    )
 
 
 def write_json(path: Path, data: dict[str, Any]) -> None:

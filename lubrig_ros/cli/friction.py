@@ -1,5 +1,8 @@
 """`lubrig friction`: landmarks of the friction law, μ and dμ/dv at chosen velocities, curve files.
 
+The friction parameters are those of the selected run (--case N | --config FILE | the default
+config/rig.yaml), with --contact-area overriding the area.
+
 Values given on the command line are parsed here rather than by argparse so that every bad value
 gives one error line naming it (argparse would add a usage block).
 """
@@ -14,13 +17,15 @@ from typing import Any
 
 from ..core.friction import friction_coefficient, friction_minimum, friction_peak, friction_slope
 from ..core.params import FrictionParameters
-from .common import allow_negative_numbers, parse_finite
+from .common import add_run_source, allow_negative_numbers, parse_finite, source_from_args
 
 
-def friction_parameters(choice: str) -> FrictionParameters:
-    """Default friction parameters with the contact area named by --contact-area."""
+def friction_parameters(base: FrictionParameters, choice: str | None) -> FrictionParameters:
+    """The selected run's friction parameters, the contact area replaced by --contact-area if given."""
+    if choice is None:
+        return base
     try:
-        return FrictionParameters().with_contact_area(choice)
+        return base.with_contact_area(choice)
     except ValueError as exc:
         raise ValueError(f"--contact-area {choice!r}: {exc}") from None
 
@@ -66,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
         parse_finite("--at", text, "a finite sliding velocity in m/s (negative allowed: μ is odd)")
         for text in (args.at or [])
     ]
-    params = friction_parameters(args.contact_area)
+    config = source_from_args(args).base()
+    params = friction_parameters(config.rig.friction, args.contact_area)
     report = friction_report(params, velocities)
     if args.out is not None:
         from ..figures.curves import plot_friction_curve, save_figure, write_friction_csv
@@ -94,16 +100,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "friction_curve.csv (1e-15…1e-2 m/s) and friction_curve.png.",
     )
     allow_negative_numbers(parser)  # let "--at -1e-7" through
+    add_run_source(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
         "--at", nargs="+", metavar="V", help="sliding velocities in m/s to evaluate μ and dμ/dv at"
     )
     parser.add_argument(
         "--contact-area",
-        default="corrected",
+        default=None,
         metavar="corrected|printed|VALUE",
-        help="contact area: 'corrected' 2.83e-10 m² (default, reproduces the study's μ), "
-        "'printed' 28.3e-12 m² (as printed in the study, μ 10x smaller) or a value in m²",
+        help="contact area: 'corrected' 2.83e-10 m² (the default run's, reproduces the study's μ), "
+        "'printed' 28.3e-12 m² (as printed in the study, μ 10x smaller) or a value in m² "
+        "(default: the selected run's)",
     )
     parser.add_argument("--out", metavar="DIR", help="write friction_curve.csv and .png here")
     parser.set_defaults(func=run)

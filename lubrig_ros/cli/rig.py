@@ -20,8 +20,9 @@ import sys
 import time
 from pathlib import Path
 
+from ..app.selection import RunSelection
 from ..core.params import CONVENTIONS, ParameterError
-from ..core.presets import RunConfig, config_dir, default_config, load_case, load_config
+from ..core.presets import RunConfig, config_dir
 from .main import CommandError
 
 NODES = ("plant", "belt_drive", "analysis")
@@ -45,22 +46,18 @@ RECORDER_NODE_PREFIX = "lubrig_recorder"  # the recorder's worker nodes: lubrig_
 
 
 def select_config(args: argparse.Namespace) -> tuple[RunConfig, dict[str, object]]:
-    """The run configuration and the ROS parameters that select it."""
+    """The run configuration and the ROS parameters that select it (app/selection.py)."""
     try:
-        if args.case is not None:
-            config, params = load_case(args.case), {"case": int(args.case)}
-        elif args.config is not None:
-            path = Path(args.config).resolve()
-            config, params = load_config(path), {"config_file": str(path)}
-        else:
-            config, params = default_config(), {}
-        if args.convention is not None:
-            config = config.with_overrides(convention=args.convention)
-        if args.duration is not None:
-            config = config.with_overrides(duration=args.duration)
+        selection = RunSelection(
+            case=args.case,
+            config_file=Path(args.config) if args.config is not None else None,
+            convention=args.convention,
+            duration=args.duration,
+        )
+        config = selection.resolve()
     except ParameterError as exc:
         raise CommandError(str(exc)) from None
-    return config, params
+    return config, selection.node_parameters()
 
 
 def _ros_args(params: dict[str, object], params_file: Path) -> list[str]:

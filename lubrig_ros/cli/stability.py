@@ -1,19 +1,22 @@
 """`lubrig stability`: band-velocity intervals of linear instability per damping ratio, and the map.
 
-Numbers are validated here (not by argparse) so that every bad value gives one error line.
+The rig is that of the selected run (--case N | --config FILE | the default config/rig.yaml);
+--convention, --contact-area and --zeta override it. Numbers are validated here (not by argparse)
+so that every bad value gives one error line.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from ..core.friction import friction_minimum, friction_peak
 from ..core.params import CONVENTIONS, RigParameters
 from ..core.stability import critical_damping_ratio, unstable_intervals
-from .common import allow_negative_numbers, parse_finite
+from .common import add_run_source, allow_negative_numbers, parse_finite, source_from_args
 from .friction import friction_parameters
 
 
@@ -25,13 +28,17 @@ def parse_zeta(text: str) -> float:
     return value
 
 
-def rig_parameters(convention: str, contact_area: str) -> RigParameters:
-    """Default rig with the chosen relative-velocity convention and contact area."""
-    if convention not in CONVENTIONS:
+def rig_parameters(base: RigParameters, convention: str | None, contact_area: str | None) -> RigParameters:
+    """The selected run's rig with the relative-velocity convention and contact area overridden."""
+    if convention is not None and convention not in CONVENTIONS:
         raise ValueError(
             f"--convention {convention!r} is not valid; expected one of {'|'.join(CONVENTIONS)}"
         )
-    return RigParameters(convention=convention, friction=friction_parameters(contact_area))
+    return replace(
+        base,
+        convention=base.convention if convention is None else convention,
+        friction=friction_parameters(base.friction, contact_area),
+    )
 
 
 def stability_report(rig: RigParameters, zetas: list[float]) -> dict[str, Any]:
@@ -64,8 +71,9 @@ def _print_table(report: dict[str, Any]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute `lubrig stability`."""
-    zetas = [parse_zeta(text) for text in args.zeta]
-    rig = rig_parameters(args.convention, args.contact_area)
+    config = source_from_args(args).base()
+    zetas = [parse_zeta(text) for text in args.zeta] if args.zeta else [config.rig.damping_ratio]
+    rig = rig_parameters(config.rig, args.convention, args.contact_area)
     report = stability_report(rig, zetas)
     if args.at is not None:
         v = parse_finite("--at", args.at, "a band velocity > 0 in m/s")
@@ -102,26 +110,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "each --zeta; --out writes stability_map.png.",
     )
     allow_negative_numbers(parser)  # so "--zeta -0.1" reaches validation
+    add_run_source(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument(
         "--zeta",
         nargs="+",
-        default=["0.01"],
+        default=None,
         metavar="Z",
-        help="damping ratios >= 0 (default: the rig's 0.01)",
+        help="damping ratios >= 0 (default: the selected run's, 0.01 for the default rig)",
     )
     parser.add_argument(
         "--convention",
-        default="physical",
+        default=None,
         metavar="physical|paper",
-        help="relative velocity v_band − ẋ (physical, default) or v_band − ẋ/ω0 (paper: "
-        "reproduces the study's figures)",
+        help="relative velocity v_band − ẋ (physical, the default run's) or v_band − ẋ/ω0 (paper: "
+        "reproduces the study's figures; the cases'); default: the selected run's",
     )
     parser.add_argument(
         "--contact-area",
-        default="corrected",
+        default=None,
         metavar="corrected|printed|VALUE",
-        help="contact area: corrected 2.83e-10 m² (default), printed 28.3e-12 m², or m²",
+        help="contact area: corrected 2.83e-10 m², printed 28.3e-12 m², or m² (default: the "
+        "selected run's, corrected for the default rig)",
     )
     parser.add_argument("--at", metavar="V", help="also report ζ_crit at this band velocity (m/s)")
     parser.add_argument("--out", metavar="DIR", help="write stability_map.png here")

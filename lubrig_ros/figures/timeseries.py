@@ -6,6 +6,8 @@ inspect axes and data.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -79,6 +81,15 @@ FIGURES = {
     "phase.png": phase_figure,
     "friction_velocity.png": friction_velocity_figure,
 }
+
+
+def write_run_figures(out: Path, trajectory: Trajectory, name: str, convention: str) -> list[Path]:
+    """Save every figure of FIGURES into out (110 dpi); return the paths."""
+    paths = []
+    for filename, make in FIGURES.items():
+        make(trajectory, name, convention).savefig(Path(out) / filename, dpi=110)
+        paths.append(Path(out) / filename)
+    return paths
 
 
 def plotted_range(fig: Figure, axis: int = 0) -> tuple[float, float]:

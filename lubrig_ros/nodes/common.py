@@ -21,8 +21,9 @@ from rclpy.node import Node
 
 from ..app import contract
 from ..app.contract import DEFAULT_NAMESPACE, DEFAULT_REALTIME_PRIORITY, MODES
+from ..app.selection import base_config
 from ..core.params import ParameterError
-from ..core.presets import RunConfig, default_config, load_case, load_config
+from ..core.presets import RunConfig
 from .interfaces import qos_profile
 
 # Topic names relative to the namespace (the contract with types and QoS: app/contract.py).
@@ -98,11 +99,7 @@ def declare_run_selection(node: Node) -> RunConfig:
         "topic_namespace", DEFAULT_NAMESPACE, descriptor("namespace of all topics", read_only=True)
     )
     check_namespace(node.get_parameter("topic_namespace").value)
-    if case:
-        return load_case(case)
-    if config_file:
-        return load_config(config_file)
-    return default_config()
+    return base_config(case, config_file)
 
 
 def declare_wait_for_subscriber(node: Node) -> str:

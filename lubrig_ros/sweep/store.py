@@ -22,7 +22,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from ..fileio import write_text_atomic
+from ..app.fileio import write_text_atomic
 from .spec import SweepSpec
 
 SPEC_FILE = "spec.yaml"
