@@ -14,10 +14,10 @@ import pytest
 import yaml
 from scipy.stats import qmc
 
+from lubrig_ros.app.analysis import analyze_displacement
 from lubrig_ros.cli.main import main
 from lubrig_ros.core.presets import from_mapping, load_case
 from lubrig_ros.core.run import simulate, summarize
-from lubrig_ros.core.wavelet import dominant_frequencies
 from lubrig_ros.sweep import load_spec, parse_spec, run_sweep
 from lubrig_ros.sweep.point import SUMMARY_KEYS
 
@@ -69,8 +69,9 @@ def test_points_equal_direct_core_runs(tmp_path):
         for key in SUMMARY_KEYS:
             assert row[key] == summary[key], key
         assert row["mu_range"] == summary["mu_max"] - summary["mu_min"]
-        components = dominant_frequencies(trajectory.displacement, 1e-3, config.band.fundamental_hz, n=3,
-                                          start=0.5)
+        # the one wavelet policy (app/analysis.py: second half, rate/4 … 3/window) on the direct run
+        components = analyze_displacement(trajectory.time, trajectory.displacement, 1000.0,
+                                          config.band.fundamental_hz).components[:3]
         assert row["wavelet_frequencies_hz"] == [c.frequency_hz for c in components]
         assert row["frequency_ratio"] == components[0].frequency_hz / summary["band_fundamental_hz"]
         assert row["status"] == "ok" and row["error"] is None

@@ -37,10 +37,9 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - started
     summary = summarize(trajectory, config)
     summary["wall_time_s"] = elapsed
-    from ..figures.timeseries import write_run_figures
+    from ..figures.run import write_run_directory  # matplotlib only when drawing
 
-    rundir.write_run(out, config, trajectory, summary)
-    write_run_figures(out, trajectory, config.name, config.rig.convention)
+    write_run_directory(out, config, trajectory, summary)
     print(
         f"{config.name}: {config.duration:g} s of rig time in {elapsed:.3f} s "
         f"({config.rig.convention} convention); x peak-to-peak {summary['x_peak_to_peak']:.3e} m, "

@@ -10,6 +10,7 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
+from ..app.analysis import WaveletAnalysis
 from ..core.wavelet import WaveletResult
 
 #: Columns drawn at most (the power is strided in time beyond that; it is smooth at those scales).
@@ -75,3 +76,16 @@ def wavelet_figure(
     )
     fig.colorbar(mesh, cax=ax_c, label="normalized power |W|²/σ²")
     return fig
+
+
+def analysis_figure(
+    analysis: WaveletAnalysis, title: str, natural_frequency_hz: float | None = None
+) -> Figure:
+    """wavelet_figure of an app.analysis result, marking f0 and the band fundamental."""
+    marks = {"f0": natural_frequency_hz, "band": analysis.fundamental_hz}
+    return wavelet_figure(
+        analysis.wavelet,
+        analysis.signal,
+        title=title,
+        marks_hz={k: v for k, v in marks.items() if v is not None},
+    )

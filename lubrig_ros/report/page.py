@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
+from ..app.analysis import analyze_displacement, whole_record
+from ..app.rundir import check_output_dir
 from ..core.run import summarize
 from .frombag import trajectory_from_bag
 
@@ -76,19 +77,22 @@ def markdown(summary: dict[str, Any], bag: Path) -> str:
 
 
 def write_report(bag: str | Path, out: str | Path) -> Path:
-    """Write figures, timeseries.csv, config.yaml, summary.json and report.md; return report.md."""
-    from ..cli.analyze import analyze_run
-    from ..cli.simulate import write_run
+    """Write figures, timeseries.csv, config.yaml, summary.json and report.md; return report.md.
 
-    bag, out = Path(bag), Path(out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {str(out)!r} exists and is not a directory")
+    The wavelet section is that of `lubrig analyze` with its defaults (whole record), computed on
+    the trajectory in memory; every file is written once.
+    """
+    from ..figures.run import write_run_directory  # matplotlib only when drawing
+
+    bag, out = Path(bag), check_output_dir(Path(out))
     config, trajectory = trajectory_from_bag(bag)
     summary = summarize(trajectory, config)
     summary["source_bag"] = str(bag.resolve())
-    write_run(out, config, trajectory, summary)
-    analyze_run(out)
-    summary = json.loads((out / "summary.json").read_text())
+    analysis = analyze_displacement(
+        trajectory.time, trajectory.displacement, config.sample_rate, config.band.fundamental_hz,
+        whole_record(),
+    )
+    summary = write_run_directory(out, config, trajectory, summary, analysis)
     page = out / "report.md"
     page.write_text(markdown(summary, bag))
     return page

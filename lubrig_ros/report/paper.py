@@ -15,12 +15,15 @@ from typing import Any
 
 import numpy as np
 
+from ..app.analysis import DEFAULT_POLICY, WaveletAnalysis, analyze_displacement, whole_record
+from ..app.rundir import check_output_dir
+from ..app.selection import base_config
 from ..core.friction import friction_coefficient, friction_minimum, friction_peak
 from ..core.params import RigParameters
-from ..core.presets import RunConfig, config_dir, load_case, load_config
+from ..core.presets import RunConfig, config_dir, load_config
 from ..core.run import simulate, summarize
 from ..core.stability import critical_damping_ratio, unstable_intervals
-from ..core.wavelet import cwt, dominant_frequencies
+from ..core.wavelet import Component
 
 #: Damping ratios up to this count as "realistic" in the stability statements.
 REALISTIC_ZETA = 0.1
@@ -42,6 +45,23 @@ class Row:
     def verdict(self) -> str:
         """Verdict: agree, or differs with the reason."""
         return "agree" if self.agree else "differs" + (f" — {self.reason}" if self.reason else "")
+
+
+@dataclass
+class CaseRun:
+    """One offline run of the comparison: configuration, trajectory, summary, wavelet analysis."""
+
+    config: RunConfig
+    trajectory: Any
+    summary: dict[str, Any]
+    analysis: WaveletAnalysis | None = None
+
+    @property
+    def components(self) -> list[Component]:
+        """Dominant components of the stationary window (app/analysis.py's one policy)."""
+        if self.analysis is None:
+            raise ValueError(f"{self.config.name}: run has no wavelet analysis")
+        return self.analysis.components
 
 
 def _g(x: float) -> str:
@@ -94,22 +114,15 @@ def stability_rows() -> list[Row]:
     ]
 
 
-def _components(traj: Any, config: RunConfig, n: int = 5, floor: float = 1e-4) -> list[Any]:
-    x = traj.displacement - traj.displacement.mean()
-    return dominant_frequencies(
-        x, 1.0 / config.sample_rate, fundamental_hz=config.band.fundamental_hz, n=n,
-        start=config.duration / 2.0, min_relative_power=floor,
-    )
-
-
-def _labels(components: list[Any], k: int) -> str:
+def _labels(components: list[Component], k: int) -> str:
     return ", ".join(f"{c.frequency_hz:.3g} Hz ({c.label})" for c in components[:k])
 
 
-def _ten_hz_decay(traj: Any, config: RunConfig) -> float:
-    """Wavelet power at 10 Hz late in the run / early (1–2 s)."""
-    x = traj.displacement - traj.displacement.mean()
-    result = cwt(x, 1.0 / config.sample_rate, fmin=5.0, fmax=60.0)
+def _ten_hz_decay(run: CaseRun) -> float:
+    """Wavelet power at 10 Hz late in the run / early (1–2 s): whole record, 5–60 Hz."""
+    traj, config = run.trajectory, run.config
+    policy = whole_record(fmin_hz=5.0, fmax_hz=60.0)
+    result = analyze_displacement(traj.time, traj.displacement, config.sample_rate, None, policy).wavelet
     j = int(np.argmin(np.abs(result.frequencies - 10.0)))
     t, d = result.time, config.duration
     early = result.power[j, (t > 1.0) & (t < 2.0)].mean()
@@ -121,11 +134,11 @@ def _mu_in(summary: dict[str, Any], low: float, high: float) -> bool:
     return summary["mu_min"] >= low and summary["mu_max"] <= high
 
 
-def case_rows(runs: dict[int, tuple[RunConfig, Any, dict[str, Any]]]) -> list[Row]:
+def case_rows(runs: dict[int, CaseRun]) -> list[Row]:
     """Section 6: the study's statements on cases 1–4, 9, 10 (paper convention)."""
     rows = []
-    c1, t1, s1 = runs[1]
-    comp1 = _components(t1, c1)
+    c1, t1, s1 = runs[1].config, runs[1].trajectory, runs[1].summary
+    comp1 = runs[1].components
     t, x = t1.time, t1.displacement
     overshoot = np.ptp(x[(t > 0.5) & (t < 1.5)]) / np.ptp(x[t > c1.duration / 2])
     mu_note = "6.486e-3 is the curve's minimum; the study's 6.5e-3 is rounded"
@@ -135,32 +148,28 @@ def case_rows(runs: dict[int, tuple[RunConfig, Any, dict[str, Any]]]) -> list[Ro
         f"μ {s1['mu_min']:.4g} … {s1['mu_max']:.4g} ({mu_note})",
         {c.harmonic for c in comp1[:2]} == {1, 2} and overshoot > 1.05 and _mu_in(s1, 6.48e-3, 6.6e-3),
     ))
-    c2, t2, s2 = runs[2]
-    comp2 = _components(t2, c2)
+    s2, comp2 = runs[2].summary, runs[2].components
     ratio = s2["x_peak_to_peak"] / s1["x_peak_to_peak"]
     rows.append(Row(
         "6 case 2", "same amplitude as case 1; 3.33, 6.66, 9.99 Hz", "as stated",
         f"x p-p ratio to case 1 = {ratio:.2f}; {_labels(comp2, 3)}",
         0.5 < ratio < 2.0 and {c.harmonic for c in comp2[:3]} == {1, 2, 3},
     ))
-    c3, t3, s3 = runs[3]
-    comp3 = _components(t3, c3, n=6)
+    s3, comp3 = runs[3].summary, runs[3].components
     rows.append(Row(
         "6 case 3", "many harmonics of 0.83 Hz, dominant near 10 Hz (12th); μ within 6.5e-3 … 6.6e-3",
         "as stated", f"{_labels(comp3, 4)}; μ {s3['mu_min']:.4g} … {s3['mu_max']:.4g}",
         abs(comp3[0].frequency_hz - 10.0) < 0.5 and len(comp3) >= 4 and _mu_in(s3, 6.48e-3, 6.6e-3),
     ))
-    c4, t4, s4 = runs[4]
-    comp4 = _components(t4, c4)
+    s4, comp4 = runs[4].summary, runs[4].components
     rows.append(Row(
         "6 case 4", "dominant 4.76 Hz, small 9.52 and 14.28 Hz; μ within about 6e-3 … 10e-3", "as stated",
         f"{_labels(comp4, 3)}; μ {s4['mu_min']:.4g} … {s4['mu_max']:.4g}",
         comp4[0].harmonic == 1 and {2, 3} <= {c.harmonic for c in comp4} and _mu_in(s4, 6e-3, 10e-3),
     ))
     for number, when in ((9, "about 10 s"), (10, "about 5 s")):
-        c, tr, _ = runs[number]
-        comp = _components(tr, c)
-        decay = _ten_hz_decay(tr, c)
+        comp = runs[number].components
+        decay = _ten_hz_decay(runs[number])
         extra = " (also 66 Hz)" if number == 10 else ""
         reason = "the 10 Hz power has not decayed by 1e-3 in this run length"
         note = (
@@ -175,11 +184,11 @@ def case_rows(runs: dict[int, tuple[RunConfig, Any, dict[str, Any]]]) -> list[Ro
     return rows
 
 
-def physical_rows(runs: dict[int, tuple[RunConfig, Any, dict[str, Any]]]) -> list[Row]:
+def physical_rows(runs: dict[int, CaseRun]) -> list[Row]:
     """Section 6: the physical convention drives cases 1, 3, 5, 6 into large stick-slip."""
     rows = []
     for number in (1, 3, 5, 6):
-        _, _, s = runs[number]
+        s = runs[number].summary
         rows.append(Row(
             f"5/6 physical case {number}", "large stick-slip (x p-p about 7e-7 m, μ reaching 0.16)",
             "model doc (independent implementation)",
@@ -240,44 +249,49 @@ def comparison_markdown(rows: list[Row], cases: list[dict[str, Any]], duration: 
 
 
 def run_paper(out: str | Path, duration: float = 20.0) -> Path:
-    """Write every figure and run directory plus comparison.md into out; return comparison.md."""
-    from ..cli.analyze import analyze_run
-    from ..cli.simulate import write_run
+    """Write every figure and run directory plus comparison.md into out; return comparison.md.
+
+    Each case is simulated and analysed once (app/analysis.py's policy: the stationary second
+    half); its directory, figures and comparison rows all come from that one analysis.
+    """
     from ..figures.curves import plot_friction_curve, plot_stability_map, save_figure
+    from ..figures.run import write_run_directory
 
     if not (np.isfinite(duration) and duration >= MIN_DURATION):
         raise ValueError(f"--duration {duration!r} is not valid; expected at least {MIN_DURATION:g} s")
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {str(out)!r} exists and is not a directory")
+    out = check_output_dir(Path(out))
     out.mkdir(parents=True, exist_ok=True)
     save_figure(plot_friction_curve(), out / "friction_curve.png")
     save_figure(plot_stability_map(RigParameters(convention="paper")), out / "stability_map.png")
 
-    def one(config: RunConfig, directory: Path, wavelet: bool) -> tuple[RunConfig, Any, dict[str, Any]]:
+    def one(config: RunConfig, directory: Path, wavelet: bool) -> CaseRun:
         started = time.perf_counter()
         trajectory = simulate(config)
         summary = summarize(trajectory, config)
         summary["wall_time_s"] = time.perf_counter() - started
-        write_run(directory, config, trajectory, summary)
+        analysis = None
         if wavelet:
-            analyze_run(directory)
-        return config, trajectory, summary
+            analysis = analyze_displacement(
+                trajectory.time, trajectory.displacement, config.sample_rate,
+                config.band.fundamental_hz, DEFAULT_POLICY,
+            )
+        summary = write_run_directory(directory, config, trajectory, summary, analysis)
+        return CaseRun(config, trajectory, summary, analysis)
 
     stick = load_config(config_dir() / "stickslip.yaml").with_overrides(duration=duration)
-    _, _, stick_summary = one(stick, out / "stickslip", wavelet=False)
-    paper: dict[int, tuple[RunConfig, Any, dict[str, Any]]] = {}
-    physical: dict[int, tuple[RunConfig, Any, dict[str, Any]]] = {}
+    stick_summary = one(stick, out / "stickslip", wavelet=False).summary
+    paper: dict[int, CaseRun] = {}
+    physical: dict[int, CaseRun] = {}
     table = []
     for number in range(1, 11):
-        base = load_case(number).with_overrides(duration=duration)
+        base = base_config(case=number).with_overrides(duration=duration)
         name = f"case{number:02d}"
         paper[number] = one(base.with_overrides(convention="paper"), out / "cases" / name, True)
         physical[number] = one(
             base.with_overrides(convention="physical"), out / "cases" / f"{name}_physical", False
         )
-        table.append(dict(paper[number][2], dir=f"cases/{name}"))
-        table.append(dict(physical[number][2], dir=f"cases/{name}_physical"))
+        table.append(dict(paper[number].summary, dir=f"cases/{name}"))
+        table.append(dict(physical[number].summary, dir=f"cases/{name}_physical"))
     rows = [
         *landmark_rows(), *stability_rows(), stickslip_row(stick_summary),
         *case_rows(paper), *physical_rows(physical),

@@ -16,10 +16,11 @@ from typing import Any
 
 import numpy as np
 
+from ..app.analysis import DEFAULT_POLICY, AnalysisError, analyze_displacement
+from ..core.integrator import Trajectory
 from ..core.presets import RunConfig, from_mapping
 from ..core.run import simulate, summarize
 from ..core.stability import linear_stability
-from ..core.wavelet import dominant_frequencies
 from .spec import Point
 
 #: summarize() keys copied into the table unchanged (so a sweep point equals a direct run exactly).
@@ -38,12 +39,12 @@ SUMMARY_KEYS = (
 )
 #: Stationary windows with peak-to-peak <= this x max|x| are steady sliding (no frequency).
 STEADY_RELATIVE_PTP = 1e-12
-#: Wavelet components kept per point.
+#: Wavelet components kept per point (the strongest of app/analysis.py's list).
 WAVELET_COMPONENTS = 3
 
 
-def wavelet_columns(config: RunConfig, displacement: Any) -> dict[str, Any]:
-    """Wavelet dominant components of the stationary half of the displacement."""
+def wavelet_columns(config: RunConfig, trajectory: Trajectory | None) -> dict[str, Any]:
+    """Wavelet dominant components of the stationary half (app/analysis.py's one policy)."""
     empty: dict[str, Any] = {
         "wavelet_frequency_hz": None,
         "wavelet_power": None,
@@ -52,18 +53,19 @@ def wavelet_columns(config: RunConfig, displacement: Any) -> dict[str, Any]:
         "wavelet_frequencies_hz": [],
         "wavelet_error": None,
     }
-    if displacement is None:
+    if trajectory is None:
         return empty
     try:
-        components = dominant_frequencies(
-            displacement,
-            1.0 / config.sample_rate,
-            fundamental_hz=config.band.fundamental_hz,
-            n=WAVELET_COMPONENTS,
-            start=config.duration / 2.0,
+        analysis = analyze_displacement(
+            trajectory.time,
+            trajectory.displacement,
+            config.sample_rate,
+            config.band.fundamental_hz,
+            DEFAULT_POLICY,
         )
-    except ValueError as exc:  # record too short for the transform: keep the point, say why
+    except AnalysisError as exc:  # record too short for the transform: keep the point, say why
         return {**empty, "wavelet_error": str(exc)}
+    components = analysis.components[:WAVELET_COMPONENTS]
     if not components:
         return empty
     first = components[0]
@@ -131,7 +133,7 @@ def _measure(point: Point) -> dict[str, Any]:
             f"displacement constant in the window (peak-to-peak {summary['x_peak_to_peak']:g} m)"
         )
     elif point.wavelet:
-        out.update(wavelet_columns(config, trajectory.displacement))
+        out.update(wavelet_columns(config, trajectory))
     frequency = out.get("wavelet_frequency_hz") or out["dominant_frequency_hz"]
     fundamental = summary["band_fundamental_hz"]
     out["frequency_ratio"] = frequency / fundamental if frequency is not None and fundamental else None

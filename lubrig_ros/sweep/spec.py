@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from ..app.selection import RunSelection
 from ..core.params import ParameterError
-from ..core.presets import RunConfig, deep_merge, from_mapping, load_case, read_yaml
+from ..core.presets import RunConfig, deep_merge, from_mapping, read_yaml
 
 SPEC_KEYS = ("name", "description", "base", "base_case", "design", "samples", "seed", "wavelet", "axes")
 DESIGNS = ("grid", "random", "lhs")
@@ -141,7 +142,7 @@ def base_mapping(spec: dict[str, Any], base_dir: Path | None = None) -> dict[str
     start: dict[str, Any] = {}
     if spec.get("base_case") is not None:
         try:
-            start = load_case(spec["base_case"]).to_dict()
+            start = RunSelection(case=spec["base_case"]).base().to_dict()
         except ParameterError as exc:
             raise SpecError(f"base_case: {exc}") from None
     base = spec.get("base") or {}
