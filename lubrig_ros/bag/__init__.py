@@ -7,10 +7,12 @@ Public API:
   custom_data with the run configuration).
 - :func:`read_messages` — (topic, type, log_time_ns, cdr) in log-time order.
 - :func:`read_arrays` — numpy arrays per topic (``arrays["/lubrig/displacement"]["data"]``).
-- :func:`repair_bag` — rebuild summary/index and metadata.yaml after a crash.
+- :func:`repair_bag` — rebuild summary/index and metadata.yaml after a crash (a tool the caller
+  runs; ``BagWriter.close`` never repairs).
 """
 
 from lubrig_ros.bag.errors import BagError
+from lubrig_ros.bag.layout import RUN_CONFIG_KEY, VERSION_KEY, find_mcap
 from lubrig_ros.bag.reader import (
     BagSummary,
     TopicArrays,
@@ -20,8 +22,8 @@ from lubrig_ros.bag.reader import (
     read_arrays,
     read_messages,
 )
-from lubrig_ros.bag.repair import RepairReport, find_mcap, repair_bag
-from lubrig_ros.bag.writer import RUN_CONFIG_KEY, VERSION_KEY, BagWriter
+from lubrig_ros.bag.repair import RepairReport, repair_bag
+from lubrig_ros.bag.writer import BagWriter
 
 __all__ = [
     "RUN_CONFIG_KEY",

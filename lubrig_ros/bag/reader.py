@@ -11,9 +11,8 @@ import numpy as np
 from rosbags.rosbag2 import Reader
 
 from lubrig_ros.bag.errors import BagError
+from lubrig_ros.bag.layout import RUN_CONFIG_KEY, bag_information, find_mcap, typestore
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
-from lubrig_ros.bag.repair import bag_information, find_mcap
-from lubrig_ros.bag.writer import RUN_CONFIG_KEY, typestore
 
 
 @dataclass

@@ -1,4 +1,8 @@
-"""Rebuild a bag's MCAP summary/index and metadata.yaml from the chunks that are intact."""
+"""Rebuild a bag's MCAP summary/index and metadata.yaml from the chunks that are intact.
+
+A tool the caller runs explicitly (`lubrig bag repair`, the recorder after a failed write):
+BagWriter.close never repairs behind the caller's back.
+"""
 
 from __future__ import annotations
 
@@ -13,8 +17,15 @@ from mcap.writer import Writer as McapWriter
 from lubrig_ros import __version__
 from lubrig_ros.app.fileio import write_text_atomic
 from lubrig_ros.bag.errors import BagError
+from lubrig_ros.bag.layout import (
+    CONFIG_SIDECAR,
+    RUN_CONFIG_KEY,
+    bag_information,
+    cdr_string,
+    find_mcap,
+    typestore,
+)
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
-from lubrig_ros.bag.writer import CONFIG_SIDECAR, RUN_CONFIG_KEY, typestore
 
 RUN_CONFIG_TOPIC_SUFFIX = "/run_config"
 
@@ -31,43 +42,6 @@ class RepairReport:
     counts: dict[str, int] = field(default_factory=dict)
     dropped: int = 0  # messages on channels whose definition was lost
     backup: Path | None = None
-
-
-def bag_information(bag_dir: Path) -> dict[str, object]:
-    """The rosbag2_bagfile_information mapping of bag_dir/metadata.yaml; BagError if unreadable."""
-    try:
-        return dict(yaml.safe_load((bag_dir / "metadata.yaml").read_text())["rosbag2_bagfile_information"])
-    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError) as exc:
-        raise BagError(f"bag {str(bag_dir)!r}: metadata.yaml is unreadable ({exc})") from exc
-
-
-def find_mcap(bag: str | Path) -> Path:
-    """The .mcap file of a bag directory (from metadata.yaml, else the only *.mcap), or a file."""
-    bag = Path(bag)
-    if bag.is_file():
-        return bag
-    if not bag.is_dir():
-        raise BagError(f"bag {str(bag)!r} does not exist: give a bag directory or an .mcap file")
-    if (bag / "metadata.yaml").is_file():
-        files = bag_information(bag).get("relative_file_paths")
-        if not isinstance(files, list):
-            raise BagError(f"bag {str(bag)!r}: metadata.yaml lists no relative_file_paths")
-        if len(files) != 1 or not str(files[0]).endswith(".mcap"):
-            raise BagError(f"bag {str(bag)!r}: expected one .mcap file, metadata lists {files}")
-        return bag / files[0]
-    found = sorted(bag.glob("*.mcap"))
-    if len(found) != 1:
-        raise BagError(f"bag {str(bag)!r}: expected one .mcap file, found {len(found)}")
-    return found[0]
-
-
-def cdr_string(data: bytes) -> str | None:
-    """Text of a serialized std_msgs/msg/String, or None if it does not decode."""
-    try:
-        msg = typestore().deserialize_cdr(data, "std_msgs/msg/String")
-    except Exception:
-        return None
-    return str(msg.data)
 
 
 def metadata_dict(

@@ -2,7 +2,7 @@
 
 Chunks are zstd-compressed. rosbags closes a chunk every 1 MiB; :meth:`BagWriter.flush` also
 closes the pending chunk and flushes it to disk, so that after a hard kill the file is readable
-up to the last flush (see :mod:`lubrig_ros.bag.repair`).
+up to the last flush (see :mod:`lubrig_ros.bag.repair`, which the caller runs explicitly).
 """
 
 from __future__ import annotations
@@ -23,26 +23,11 @@ from rosbags.interfaces import (
 )
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
-from rosbags.typesys import Stores, get_typestore
-from rosbags.typesys.store import Typestore
 
 from lubrig_ros import __version__
 from lubrig_ros.app.fileio import write_text_atomic
 from lubrig_ros.bag.errors import BagError
-
-RUN_CONFIG_KEY = "lubrig_ros.run_config"
-VERSION_KEY = "lubrig_ros.version"
-CONFIG_SIDECAR = "run_config.yaml"  # copy of the run configuration, kept for repair after a crash
-
-_TYPESTORE: Typestore | None = None
-
-
-def typestore() -> Typestore:
-    """The rosbags type store used for message definitions (ROS 2 Kilted)."""
-    global _TYPESTORE
-    if _TYPESTORE is None:
-        _TYPESTORE = get_typestore(Stores.ROS2_KILTED)
-    return _TYPESTORE
+from lubrig_ros.bag.layout import CONFIG_SIDECAR, RUN_CONFIG_KEY, VERSION_KEY, typestore
 
 
 def has_leading_stamp(msgtype: str) -> bool:
@@ -178,17 +163,17 @@ class BagWriter:
         self.last_flush = time.monotonic()
 
     def close(self) -> None:
-        """Finalize: MCAP summary/index and metadata.yaml. After a failure, repair instead."""
+        """Finalize: MCAP summary/index and metadata.yaml.
+
+        After a write failure (``failed``) the file is only closed: the flushed chunks stay on
+        disk unfinalized and the caller decides whether to run ``repair_bag`` (the recorder
+        does; ``lubrig bag repair`` can retry later). close() never repairs by itself.
+        """
         if self.closed:
             return
         self.closed = True
         if self.failed:
             self._abort()
-            from lubrig_ros.bag.repair import repair_bag
-
-            # On failure the flushed chunks stay on disk; `lubrig bag repair` can retry later.
-            with contextlib.suppress(BagError, OSError):
-                repair_bag(self.path, backup=False)
             return
         try:
             self._writer.close()

@@ -9,8 +9,6 @@ import argparse
 import json
 import math
 import re
-import sys
-from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -110,25 +108,3 @@ def selection_from_args(args: argparse.Namespace) -> RunSelection:
 def write_json(path: Path, data: dict[str, Any]) -> None:
     """Write JSON atomically (temporary file, then rename) so a reader never sees half a file."""
     write_text_atomic(path, json.dumps(data, indent=2) + "\n")
-
-
-def run_script(
-    prog: str,
-    build_parser: Callable[[], argparse.ArgumentParser],
-    run: Callable[[argparse.Namespace], int],
-    argv: Sequence[str] | None,
-    errors: tuple[type[BaseException], ...] = (ValueError, OSError),
-) -> int:
-    """Entry of a console script that takes plain options (ROS arguments after --ros-args ignored).
-
-    A user error becomes one line `prog: error: …` on stderr and exit status 2.
-    """
-    args_list = list(sys.argv[1:] if argv is None else argv)
-    if "--ros-args" in args_list:
-        args_list = args_list[: args_list.index("--ros-args")]
-    args = build_parser().parse_args(args_list)
-    try:
-        return run(args)
-    except errors as exc:
-        print(f"{prog}: error: {exc}", file=sys.stderr)
-        return 2

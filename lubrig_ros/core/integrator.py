@@ -166,7 +166,7 @@ class RigIntegrator:
     def _sampled(
         self, time: np.ndarray, x: np.ndarray, w: np.ndarray, band: np.ndarray
     ) -> Trajectory:
-        relative = band - self.rig.velocity_factor * w
+        relative = self.rig.relative_velocity(band, w)
         mu = _mu_and_slope_array(np.ascontiguousarray(relative), self._fp)[0]  # params already packed
         return Trajectory(
             time=time,

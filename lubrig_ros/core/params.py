@@ -147,6 +147,10 @@ class RigParameters:
         """γ in v_rel = v_band − γ ẋ: 1 (physical) or 1/ω0 in s (paper)."""
         return 1.0 if self.convention == "physical" else 1.0 / self.angular_frequency
 
+    def relative_velocity(self, band_velocity: Any, velocity: Any) -> Any:
+        """v_rel = v_band − γ ẋ in m/s (scalars or arrays): the one home of the convention."""
+        return band_velocity - self.velocity_factor * velocity
+
     def to_dict(self) -> dict[str, Any]:
         """Plain dictionary (YAML/JSON friendly), friction nested."""
         return asdict(self)

@@ -35,9 +35,10 @@ import yaml
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, Topic, documented_topics, resolve
 from lubrig_ros.app.contract import select_topics as _select_topics
 from lubrig_ros.bag.errors import BagError
-from lubrig_ros.bag.repair import cdr_string
+from lubrig_ros.bag.layout import cdr_string
+from lubrig_ros.bag.repair import repair_bag
 from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, leading_stamp_ns, serialize_string
-from lubrig_ros.cli.common import run_script
+from lubrig_ros.nodes.script import run_script
 
 BATCH_PERIOD_S = 0.02
 SIM_HOLD_NS = 300_000_000  # wait this long for /clock before stamping an unstamped message
@@ -314,13 +315,23 @@ class Recorder:
             self._handle([], force=True)
 
     def shutdown(self) -> None:
-        """Stop workers (if still running) and finalize the bag."""
+        """Stop workers (if still running) and finalize the bag; after a write failure, repair it.
+
+        BagWriter.close only closes a failed bag; the repair (what was flushed, finalized) is run
+        here explicitly. If it fails too (e.g. the disk is still full) the bag stays unfinalized
+        and `lubrig bag repair DIR` can retry.
+        """
         self.stop_event.set()
         for p in self.procs:
             p.join(timeout=3)
             if p.is_alive():
                 p.kill()
-        self.writer.close()
+        try:
+            self.writer.close()
+        finally:
+            if self.writer.failed:
+                with contextlib.suppress(BagError, OSError):
+                    repair_bag(self.writer.path, backup=False)
 
 
 # ----------------------------------------------------------------------------- command line

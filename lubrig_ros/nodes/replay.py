@@ -18,7 +18,7 @@ from pathlib import Path
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, STREAM_QOS, documented_topics, resolve
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.reader import check_bag, read_messages
-from lubrig_ros.cli.common import run_script
+from lubrig_ros.nodes.script import run_script
 
 
 def build_parser(prog: str = "replay") -> argparse.ArgumentParser:

@@ -110,5 +110,5 @@ def trajectory_from_bag(bag: str | Path, namespace: str | None = None) -> tuple[
         band = band_recorded
     else:
         band = np.asarray(config.band(time), float)
-    rel = band - config.rig.velocity_factor * v
+    rel = config.rig.relative_velocity(band, v)
     return config, Trajectory(time, x, v, mu, band, rel)
