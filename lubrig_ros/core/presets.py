@@ -23,18 +23,24 @@ CASE_NUMBERS = range(1, 11)
 
 
 def config_dir() -> Path:
-    """Where the shipped YAML presets live (source tree, or the installed share directory)."""
+    """Where the shipped YAML presets live: the source tree, else an install's share directory.
+
+    Installed, they are in <prefix>/share/lubrig_ros/config for a prefix on AMENT_PREFIX_PATH
+    (colcon / ament install, what ament_index_python would find) or sys.prefix (pip); looked up
+    here without importing a ROS package, so core stays ROS-free.
+    """
     here = Path(__file__).resolve().parents[2] / "config"
     if (here / "rig.yaml").is_file():
         return here
-    try:
-        from ament_index_python.packages import get_package_share_directory
+    import os
+    import sys
 
-        return Path(get_package_share_directory("lubrig_ros")) / "config"
-    except Exception:
-        import sys
-
-        return Path(sys.prefix) / "share" / "lubrig_ros" / "config"
+    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    for prefix in [*prefixes, sys.prefix]:
+        candidate = Path(prefix) / "share" / "lubrig_ros" / "config"
+        if (candidate / "rig.yaml").is_file():
+            return candidate
+    return Path(sys.prefix) / "share" / "lubrig_ros" / "config"
 
 
 @dataclass(frozen=True)
