@@ -3,7 +3,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test lint bench
+.PHONY: setup run test lint typecheck bench
 
 $(STAMP): requirements.txt setup.py
 	python3 -m venv $(VENV)
@@ -24,6 +24,10 @@ test: setup
 
 lint: setup
 	$(VENV)/bin/ruff check lubrig_ros test bench
+
+# mypy on core/ and app/ (settings in pyproject.toml [tool.mypy]); must report no issues.
+typecheck: setup
+	$(VENV)/bin/mypy
 
 # Benchmarks print their figures (docs/benchmarks.md records them with these commands).
 bench: setup

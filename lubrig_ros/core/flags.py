@@ -158,7 +158,7 @@ def evaluate_flags(
     moving = band_velocity is not None and math.isfinite(band_velocity) and band_velocity != 0.0
     if band_velocity is not None:
         values["band_velocity_m_s"] = float(band_velocity)
-    if moving:
+    if moving and band_velocity is not None:  # (moving implies it; said again for the type checker)
         verdict = linear_stability(abs(float(band_velocity)), rig)
         values.update(
             zone=verdict.zone,

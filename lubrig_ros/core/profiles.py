@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -231,7 +231,7 @@ def profile_from_dict(data: dict[str, Any], base_dir: Path | None = None) -> Ban
             raise ParameterError(f"unknown table band parameter(s) {sorted(data)}; valid: ['path']")
         return TableBand.from_csv(path)
     cls = PROFILE_KINDS[kind]
-    valid = list(cls.__dataclass_fields__)
+    valid = [f.name for f in fields(cls)]
     unknown = set(data) - set(valid)
     if unknown:
         raise ParameterError(f"unknown {kind} band parameter(s) {sorted(unknown)}; valid: {valid}")

@@ -8,6 +8,7 @@ equilibrium is stable exactly when that effective damping is positive.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -40,12 +41,12 @@ def _coupling(rig: RigParameters) -> float:
     return rig.angular_frequency * rig.velocity_factor * rig.friction.normal_force / rig.stiffness
 
 
-def _effective(damping_ratio: float | np.ndarray, rig: RigParameters, slope: np.ndarray) -> np.ndarray:
+def _effective(damping_ratio: float | np.ndarray, rig: RigParameters, slope: float | np.ndarray) -> Any:
     """Hyper-time damping coefficient 2ζ + ω0 γ N μ'/k of the linearized rig."""
     return 2.0 * damping_ratio + _coupling(rig) * slope
 
 
-def _critical(rig: RigParameters, slope: np.ndarray) -> np.ndarray:
+def _critical(rig: RigParameters, slope: float | np.ndarray) -> Any:
     """ζ_crit = max(0, −ω0 γ N μ'/(2k)) for dμ/dv = slope."""
     return np.maximum(0.0, -_coupling(rig) * slope / 2.0)
 

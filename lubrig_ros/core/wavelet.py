@@ -136,7 +136,7 @@ def transform_coefficients(
     """W_n(s) = IFFT(x̂ · ψ̂) for every scale, first x.size columns; x must be demeaned."""
     n = x.size
     x_hat = sfft.rfft(x, n_fft).astype(dtype, copy=False)
-    out = np.empty((psi_hat.shape[0], n), dtype=dtype)
+    out: np.ndarray = np.empty((psi_hat.shape[0], n), dtype=dtype)
     chunk = max(1, (1 << 22) // n_fft)
     half = n_fft // 2 + 1
     buffer = np.zeros((min(chunk, psi_hat.shape[0]), n_fft), dtype=dtype)
