@@ -4,8 +4,8 @@ Policy (WaveletPolicy, defaults in one place; docs/wavelets.md):
 
 - signal: the displacement minus its mean over the analysed window;
 - window: from `start_s` (s after the first sample) to the end; None = the stationary second
-  half of the run, the window of core.run.summarize (sweeps, `lubrig paper`); `lubrig analyze`
-  and reports pass 0 (the whole record);
+  half of the run, exactly the window of core.run.summarize (t >= t_end / 2; sweeps, `lubrig
+  paper`); `lubrig analyze` and reports pass 0 (the whole record);
 - scales: s0 2^(j dj), dj = 1/12, from fmax (default rate/4) down to fmin (default 3 / window
   length: at least three periods in the window);
 - memory cap: scales × samples ≤ max_power_points (3·10⁷). With the default fmax the window
@@ -59,7 +59,7 @@ class AnalysisError(ValueError):
 class WaveletPolicy:
     """How a displacement record is analysed; every default of the analysis is here."""
 
-    start_s: float | None = None  # None: the second half of the run (stationary window)
+    start_s: float | None = None  # None: the second half, t >= t_end / 2 (summarize's window)
     dj: float = DEFAULT_DJ  # octaves between scales
     fmin_hz: float | None = None  # None: FMIN_PERIODS / window length
     fmax_hz: float | None = None  # None: FMAX_FRACTION × rate, lowered by decimation
@@ -170,9 +170,13 @@ def analyze_displacement(
             f"time {time.shape} and displacement {displacement.shape} must be 1-D of equal length"
         )
     dt = 1.0 / float(sample_rate)
-    duration = float(time[-1] - time[0]) if time.size else 0.0
-    start = policy.start_for(duration)
-    t, x = _window(time, displacement, start, dt)
+    if policy.start_s is None and time.size:  # exactly summarize()'s stationary window
+        keep = time >= time[-1] / 2.0
+        t, x = time[keep], displacement[keep]
+        start = float(time[-1] / 2.0 - time[0])
+    else:
+        start = policy.start_for(float(time[-1] - time[0]) if time.size else 0.0)
+        t, x = _window(time, displacement, start, dt)
     if x.size < MIN_SAMPLES:
         raise AnalysisError(
             f"{x.size} samples after --start {start:g} s; at least {MIN_SAMPLES} are needed"
