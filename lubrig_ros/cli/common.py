@@ -6,13 +6,10 @@ The options (--case | --config, band and rig overrides) map onto app/selection.p
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import re
 from pathlib import Path
-from typing import Any
 
-from ..app.fileio import write_text_atomic
 from ..app.selection import RunSelection
 from ..core.profiles import BandProfile, ConstantBand, RegularCycle, TableBand
 
@@ -103,8 +100,3 @@ def selection_from_args(args: argparse.Namespace) -> RunSelection:
         sample_rate=_number(args, "sample_rate", "--sample-rate", "a sample rate > 0 in Hz"),
         rtol=_number(args, "rtol", "--rtol", "a relative tolerance in [1e-13, 1e-2]"),
     )
-
-
-def write_json(path: Path, data: dict[str, Any]) -> None:
-    """Write JSON atomically (temporary file, then rename) so a reader never sees half a file."""
-    write_text_atomic(path, json.dumps(data, indent=2) + "\n")
