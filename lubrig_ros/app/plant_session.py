@@ -41,6 +41,7 @@ from ..core.presets import RunConfig, from_mapping
 from ..core.run import integrator_for
 from .contract import FRICTION_FIELDS, MODES, PLANT_PARAMETERS, RIG_FIELDS
 from .diagnostics import Status
+from .timing import DeadlineLoop, LatencyHistogram
 
 #: Plant parameters that rebuild the run configuration (contract entries with `from_config`).
 CONFIG_PARAMETERS: tuple[str, ...] = tuple(p.name for p in PLANT_PARAMETERS if p.from_config)
@@ -121,36 +122,6 @@ def config_from(base: RunConfig, values: Mapping[str, Any]) -> RunConfig:
         {n: value(n) for n in ("duration", "sample_rate", "rtol", "initial_perturbation")}
     )
     return from_mapping(data)
-
-
-class LatencyHistogram:
-    """Latencies in fixed 10 µs bins up to 50 ms (plus an overflow bin).
-
-    Adding is O(1) and a percentile costs one pass over 5,000 bins, whatever the run length: a
-    list of every sample made each diagnostics report hold the GIL for ~11 ms after 200 s at 1 kHz,
-    long enough to make the real-time loop miss ~11 deadlines.
-    """
-
-    BIN_S = 1e-5
-    BINS = 5000
-
-    def __init__(self) -> None:
-        self.counts = np.zeros(self.BINS + 1, dtype=np.int64)
-        self.count = 0
-
-    def add(self, seconds: float) -> None:
-        """Record one latency (negative values count as 0)."""
-        self.counts[min(max(int(seconds / self.BIN_S), 0), self.BINS)] += 1
-        self.count += 1
-
-    def percentiles(self, qs: tuple[float, ...] = (50.0, 99.0)) -> list[float]:
-        """Upper bin edges at the given percentiles, s (0.0 each when empty)."""
-        if self.count == 0:
-            return [0.0 for _ in qs]
-        cumulative = np.cumsum(self.counts)
-        return [
-            float((np.searchsorted(cumulative, q / 100.0 * self.count) + 1) * self.BIN_S) for q in qs
-        ]
 
 
 def _nothing(*_args: Any) -> None:
@@ -341,6 +312,25 @@ class PlantSession:
             self.max_late = max(self.max_late, late)
             if deadline is not None and done - deadline > self.period:
                 self.misses += 1
+
+    def run_realtime(self, stopped: Callable[[], bool]) -> None:
+        """Realtime: emit the initial state, then tick at the sample rate until stopped().
+
+        Absolute deadlines (app.timing.DeadlineLoop); paused: wait; after a reset or a resume
+        the deadlines restart from now. Exceptions of a tick propagate to the caller.
+        """
+        loop = DeadlineLoop(self.period)
+        k = 0
+        self.emit_initial()
+        while not stopped():
+            if self.paused:
+                time.sleep(0.01)
+                continue
+            if self.take_restart_clock():
+                loop, k = DeadlineLoop(self.period), 0
+            k += 1
+            late = loop.wait(k)
+            self.tick(loop.deadline(k), late)
 
     # ---- integration and output ----------------------------------------------------------
     def _advance(self, band: float) -> Trajectory:

@@ -10,7 +10,6 @@ from __future__ import annotations
 import gc
 import math
 import os
-import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
@@ -25,6 +24,7 @@ from ..app import contract
 from ..app.contract import DEFAULT_NAMESPACE, NodeParameter
 from ..app.diagnostics import Status
 from ..app.selection import base_config
+from ..app.timing import DeadlineLoop
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
 from .interfaces import qos_profile
@@ -146,34 +146,6 @@ def finite(value: float) -> bool:
     return isinstance(value, float | int) and math.isfinite(value)
 
 
-class DeadlineLoop:
-    """Absolute-deadline periodic loop: sleep most of the period, spin the last few 100 µs."""
-
-    SPIN_S = 0.0003
-
-    def __init__(self, period: float) -> None:
-        self.period = period
-        self.start = time.perf_counter()
-        self.ticks = 0
-
-    def deadline(self, k: int) -> float:
-        """perf_counter time of tick k."""
-        return self.start + k * self.period
-
-    def wait(self, k: int) -> float:
-        """Block until tick k is due; return how late (s) we are for it (≥ 0)."""
-        due = self.deadline(k)
-        while True:
-            now = time.perf_counter()
-            remaining = due - now
-            if remaining <= 0.0:
-                return -remaining
-            if remaining > self.SPIN_S:
-                time.sleep(remaining - self.SPIN_S)
-            else:
-                time.sleep(0)
-
-
 def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     """rclpy.init, build the node, spin until SIGINT/SIGTERM, destroy, shut down; exit status."""
     rclpy.init(args=args)
@@ -211,7 +183,7 @@ __all__ = [
     "DEFAULT_NAMESPACE",
     "LATCHED_QOS",
     "STREAM_QOS",
-    "DeadlineLoop",
+    "DeadlineLoop",  # from app.timing (belt_drive)
     "declare",
     "declare_parameters",
     "declare_run_selection",

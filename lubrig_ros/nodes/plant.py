@@ -1,21 +1,15 @@
 """plant node: the rig (app.plant_session.PlantSession) on ROS topics, driven by <ns>/band_velocity.
 
-Modes (the rules live in app/plant_session.py, unit-tested without DDS):
-* `sim`: rig time is the plant's own; one sample per band message, in order, each published with
-  /clock; equal to core.run.simulate sample for sample; <ns>/run_complete turns true at `duration`.
-* `realtime`: a deadline loop advances one sample per period of the wall clock with the latest
-  band velocity; deadline misses and band→state latency are reported in /diagnostics.
-* `rig_in_loop`: as realtime, for an external band publisher; bad values are rejected, the last
-  good one held, staleness reported.
-Services: <ns>/plant/reset (Trigger), <ns>/plant/pause (SetBool). Topics, QoS and parameters:
-app/contract.py (docs/topics.md, docs/nodes.md).
+Modes sim | realtime | rig_in_loop; their rules live in app/plant_session.py (unit-tested without
+DDS): sim integrates one sample per band message, in order, equal to core.run.simulate, and
+publishes /clock; realtime modes tick from a deadline loop with the latest good band value.
+Services <ns>/plant/reset and <ns>/plant/pause. Topics, QoS, parameters: app/contract.py.
 """
 
 from __future__ import annotations
 
 import sys
 import threading
-import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
@@ -160,24 +154,11 @@ class Plant(Node):
             self.pub_clock.publish(clock)
 
     def _realtime_loop(self) -> None:
-        session = self.session
-        loop = common.DeadlineLoop(session.period)
-        k = 0
-        session.emit_initial()
-        while not self._stop.is_set():
-            if session.paused:
-                time.sleep(0.01)
-                continue
-            if session.take_restart_clock():
-                loop, k = common.DeadlineLoop(session.period), 0
-            k += 1
-            late = loop.wait(k)
-            try:
-                session.tick(loop.deadline(k), late)
-            except Exception as exc:
-                if not self._stop.is_set() and self.context.ok():
-                    self.get_logger().fatal(f"real-time loop stopped: {exc!r}")
-                return
+        try:
+            self.session.run_realtime(self._stop.is_set)
+        except Exception as exc:
+            if not self._stop.is_set() and self.context.ok():
+                self.get_logger().fatal(f"real-time loop stopped: {exc!r}")
 
     def _publish_diagnostics(self) -> None:
         array = DiagnosticArray()
