@@ -87,12 +87,16 @@ def parameter_table(node: str) -> str:
     return "\n".join(rows)
 
 
+def _parameters(node: str) -> Callable[[], str]:
+    return lambda: parameter_table(node)
+
+
 #: Generated blocks: name → text.
 BLOCKS: dict[str, Callable[[], str]] = {
     "topics": topic_table,
     "readme-topics": readme_topic_table,
     "services": service_table,
-    **{f"parameters-{node}": (lambda node=node: parameter_table(node)) for node in contract.NODE_PARAMETERS},
+    **{f"parameters-{node}": _parameters(node) for node in contract.NODE_PARAMETERS},
 }
 #: Documents (relative to the repository root) and the blocks each must hold.
 DOCUMENTS: dict[str, tuple[str, ...]] = {
