@@ -8,7 +8,11 @@ and the tables in README.md, docs/topics.md and docs/nodes.md are generated from
 Names are stored RELATIVE (``band_velocity``, ``plant/reset``) and resolved against a namespace
 (today's default ``/lubrig``) by `resolve`; only the ROS-wide standard topics ``/clock`` and
 ``/diagnostics`` are absolute. Message and service types are strings ("std_msgs/msg/Float64"),
-QoS is plain data (`QoS`); the ROS adapters turn them into rclpy objects (nodes/qos.py).
+QoS is plain data (`QoS`); the ROS adapters turn them into rclpy objects (nodes/interfaces.py).
+
+The nodes create every publisher, subscription and service through nodes/interfaces.py, the one
+place a contract name is resolved for rclpy: handing rclpy the relative name instead (so that
+`__ns`, `-r name:=...` and launch remappings apply) is a change there, not in every node.
 """
 
 from __future__ import annotations
