@@ -4,10 +4,12 @@ and the documentation and config/nodes.yaml that must agree with it."""
 from __future__ import annotations
 
 import importlib.util
+from pathlib import Path
 
 import pytest
+import yaml
 
-from lubrig_ros.app import contract
+from lubrig_ros.app import contract, contract_docs
 from lubrig_ros.core.params import ParameterError
 
 VALID = ["/lubrig", "/", "/rig_2", "/a/b2", "/_", "/A/_x", "/" + "a" * 244]
@@ -115,3 +117,48 @@ def test_every_parameter_has_a_description_and_a_default_source():
             assert (p.default is None) == bool(p.from_config), (node, p.name)
             if p.default is not None:
                 p.check(p.default)  # the default itself is valid
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_doc_tables_are_generated_from_the_contract():
+    """README.md, docs/topics.md and docs/nodes.md hold the contract's tables, up to date."""
+    assert contract_docs.problems(ROOT) == []
+    topics = (ROOT / "docs" / "topics.md").read_text()
+    for t in contract.TOPICS:  # every topic with its resolved name, type and QoS
+        assert f"`{contract.resolve('/lubrig', t.name)}`" in topics
+    nodes = (ROOT / "docs" / "nodes.md").read_text()
+    for node, params in contract.NODE_PARAMETERS.items():
+        for p in params:
+            assert f"| `{p.name}` |" in nodes, (node, p.name)
+
+
+def test_a_stale_table_is_detected(tmp_path):
+    for name in contract_docs.DOCUMENTS:
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text((ROOT / name).read_text())
+    topics = tmp_path / "docs" / "topics.md"
+    topics.write_text(topics.read_text().replace("keep_last 1000", "keep_last 999", 1))
+    assert contract_docs.problems(tmp_path) == [
+        "docs/topics.md: generated tables differ from app/contract.py"
+    ]
+    assert contract_docs.main([str(tmp_path), "--check"]) == 1
+    assert contract_docs.main([str(tmp_path)]) == 0  # rewrite
+    assert contract_docs.problems(tmp_path) == []
+
+
+def test_nodes_yaml_sets_only_contract_parameters_with_valid_values():
+    data = yaml.safe_load((ROOT / "config" / "nodes.yaml").read_text())
+    assert data, "config/nodes.yaml is empty"
+    for key, section in data.items():
+        params = section["ros__parameters"]
+        nodes = list(contract.NODE_PARAMETERS) if key == "/**" else [key]
+        assert set(nodes) <= set(contract.NODE_PARAMETERS), key
+        for node in nodes:
+            for name, value in params.items():
+                spec = contract.parameter(node, name)  # KeyError: not in the contract
+                spec.check(value)
+                if spec.default is not None:
+                    # the file restates the contract's defaults (it documents them for users)
+                    assert value == spec.default, (node, name, value, spec.default)

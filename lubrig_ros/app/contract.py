@@ -8,7 +8,11 @@ and the tables in README.md, docs/topics.md and docs/nodes.md are generated from
 Names are stored RELATIVE (``band_velocity``, ``plant/reset``) and resolved against a namespace
 (today's default ``/lubrig``) by `resolve`; only the ROS-wide standard topics ``/clock`` and
 ``/diagnostics`` are absolute. Message and service types are strings ("std_msgs/msg/Float64"),
-QoS is plain data (`QoS`); the ROS adapters turn them into rclpy objects (nodes/qos.py).
+QoS is plain data (`QoS`); the ROS adapters turn them into rclpy objects (nodes/interfaces.py).
+
+The nodes create every publisher, subscription and service through nodes/interfaces.py, the one
+place a contract name is resolved for rclpy: handing rclpy the relative name instead (so that
+`__ns`, `-r name:=...` and launch remappings apply) is a change there, not in every node.
 """
 
 from __future__ import annotations
@@ -188,8 +192,8 @@ TOPICS: tuple[Topic, ...] = (
        "velocity [ẋ m/s, v_band m/s this sample was integrated with]; effort [μ·N N, 0]"),
     _t("/clock", "rosgraph_msgs/msg/Clock", STREAM_QOS, "plant (sim mode only)",
        "output rate + 5 Hz heartbeat", "s", "rig time"),
-    _t("run_config", "std_msgs/msg/String", LATCHED_QOS, "plant (recorded from the launcher's file)",
-       "once, latched", "YAML", "the full run configuration"),
+    _t("run_config", "std_msgs/msg/String", LATCHED_QOS, "plant", "once, latched", "YAML",
+       "the full run configuration (in a bag: the launcher's run_config.yaml)"),
     _t("run_complete", "std_msgs/msg/Bool", LATCHED_QOS, "plant", "on change, latched", "1",
        "false at start and after a reset, true once a sim run reaches its duration"),
     _t("dominant_frequency", "std_msgs/msg/Float64", ANALYSIS_QOS, "analysis",

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -10,6 +9,7 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import Reader
 
+from lubrig_ros.app.cdr import float64_value
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import RUN_CONFIG_KEY, bag_information, find_mcap, typestore
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
@@ -154,12 +154,9 @@ class TopicArrays:
         return self.t if key == "t" else self.fields[key]
 
 
-_F64 = struct.Struct("<d")
-
-
 def _decode(msgtype: str, data: bytes) -> dict[str, object]:
     if msgtype == "std_msgs/msg/Float64" and len(data) >= 12 and data[1] == 1:
-        return {"data": _F64.unpack_from(data, 4)[0]}
+        return {"data": float64_value(data)}  # fast path; other encodings: rosbags below
     msg = typestore().deserialize_cdr(data, msgtype)
     if msgtype == "sensor_msgs/msg/JointState":
         first = lambda arr: float(arr[0]) if len(arr) else np.nan  # noqa: E731

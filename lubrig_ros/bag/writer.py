@@ -39,16 +39,6 @@ def has_leading_stamp(msgtype: str) -> bool:
     return first[0].name == "NAME" and first[1] in {"std_msgs/msg/Header", "builtin_interfaces/msg/Time"}
 
 
-def leading_stamp_ns(data: bytes) -> int:
-    """Time stamp (ns) at the start of a CDR payload whose type has_leading_stamp."""
-    if len(data) < 12:
-        raise ValueError(f"payload of {len(data)} bytes is too short for a time stamp")
-    order = "little" if data[1] == 1 else "big"
-    sec = int.from_bytes(data[4:8], order, signed=True)
-    nsec = int.from_bytes(data[8:12], order, signed=False)
-    return sec * 1_000_000_000 + nsec
-
-
 def make_qos(depth: int, latched: bool) -> Qos:
     """The offered QoS stored with a topic: reliable, keep_last depth, volatile or latched."""
     zero = QosTime(0, 0)

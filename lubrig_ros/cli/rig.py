@@ -1,11 +1,13 @@
 """`lubrig rig`: start the node processes for one run, wait for it, stop them, report.
 
-Starts the recorder (`recorder -o DIR/bag --config DIR/run_config.yaml [--use-sim-time]`, sim
-mode logs rig time) and waits until it is subscribed, then belt_drive, plant and analysis on the
-current ROS_DOMAIN_ID; waits until the plant reports the run complete (sim) or the wall duration
-has passed (realtime), stops the nodes and then the recorder with SIGINT (SIGTERM after a grace
-period) so that the bag is finalized, and finally writes the report of the bag into DIR/report
-(`--no-report` skips it) and prints its location.
+Resolves the run once (case | config file | default, plus --duration / --convention) and writes
+it to DIR/run_config.yaml; every node gets that file as its `config_file` parameter (nothing is
+rebuilt from a case number). Starts the recorder (`recorder -o DIR/bag --config
+DIR/run_config.yaml [--use-sim-time]`, sim mode logs rig time) and waits until it is subscribed,
+then belt_drive, plant and analysis on the current ROS_DOMAIN_ID; waits until the plant reports
+the run complete (sim) or the wall duration has passed (realtime), stops the nodes and then the
+recorder with SIGINT (SIGTERM after a grace period) so that the bag is finalized, and finally
+writes the report of the bag into DIR/report (`--no-report` skips it) and prints its location.
 """
 
 from __future__ import annotations
@@ -45,19 +47,42 @@ RECORDER_NODE_PREFIX = "lubrig_recorder"  # the recorder's worker nodes: lubrig_
 
 
 
-def select_config(args: argparse.Namespace) -> tuple[RunConfig, dict[str, object]]:
-    """The run configuration and the ROS parameters that select it (app/selection.py)."""
+RUN_CONFIG_FILE = "run_config.yaml"
+
+
+def resolve_run(
+    case: int | None = None,
+    config_file: str | Path | None = None,
+    duration: float | None = None,
+    convention: str | None = None,
+) -> RunConfig:
+    """The run: case 1..10, else a configuration file, else the default; then the overrides.
+
+    The launchers' (`lubrig rig`, launch/rig.launch.py) use of app/selection.py: 0 / "" / None
+    mean "not given". ParameterError naming the bad value.
+    """
+    selection = RunSelection(
+        case=case or None,
+        config_file=Path(config_file).resolve() if config_file else None,
+        convention=convention or None,
+        duration=duration,
+    )
+    return selection.resolve()
+
+
+def write_run_config(config: RunConfig, directory: Path) -> Path:
+    """Write the resolved run to DIRECTORY/run_config.yaml; the path the nodes get as config_file."""
+    path = directory / RUN_CONFIG_FILE
+    path.write_text(config.to_yaml())
+    return path.resolve()
+
+
+def select_config(args: argparse.Namespace) -> RunConfig:
+    """The resolved run of the command line (CommandError on a bad value)."""
     try:
-        selection = RunSelection(
-            case=args.case,
-            config_file=Path(args.config) if args.config is not None else None,
-            convention=args.convention,
-            duration=args.duration,
-        )
-        config = selection.resolve()
+        return resolve_run(args.case, args.config, args.duration, args.convention)
     except ParameterError as exc:
         raise CommandError(str(exc)) from None
-    return config, selection.node_parameters()
 
 
 def _ros_args(params: dict[str, object], params_file: Path) -> list[str]:
@@ -74,17 +99,16 @@ def _wait_complete(deadline: float, procs: dict[str, subprocess.Popen]) -> bool:
     from rclpy.node import Node
     from std_msgs.msg import Bool
 
-    from ..nodes import common
+    from ..app import contract
+    from ..nodes.interfaces import qos_profile
 
+    spec = contract.topic("run_complete").resolved(contract.DEFAULT_NAMESPACE)
     context = Context()
     rclpy.init(context=context)
     node = Node("lubrig_rig_launcher", context=context)
     done = []
     node.create_subscription(
-        Bool,
-        common.topic(common.DEFAULT_NAMESPACE, common.RUN_COMPLETE),
-        lambda m: done.append(True) if m.data else None,
-        common.LATCHED_QOS,
+        Bool, spec.name, lambda m: done.append(True) if m.data else None, qos_profile(spec.qos)
     )
     from rclpy.executors import SingleThreadedExecutor
 
@@ -154,23 +178,21 @@ def _wait_recorder(proc: subprocess.Popen, log: Path, limit: float = RECORDER_RE
 
 def run(args: argparse.Namespace) -> int:
     """Start, wait, stop, report."""
-    config, params = select_config(args)
+    config = select_config(args)
     mode = args.mode
     bag = Path(args.bag).resolve()
     bag.mkdir(parents=True, exist_ok=True)
     logs = bag / "logs"
     logs.mkdir(exist_ok=True)
-    (bag / "run_config.yaml").write_text(config.to_yaml())
+    run_config = write_run_config(config, bag)
     params_file = config_dir() / "nodes.yaml"
-    common_params = dict(params, mode=mode, duration=config.duration)
+    # every node reads the resolved run (duration, convention, rig, band) from the one file
+    selection: dict[str, object] = {"config_file": str(run_config)}
     per_node: dict[str, dict[str, object]] = {
-        "plant": dict(common_params),
-        "belt_drive": dict(common_params),
-        "analysis": dict(params),
+        "plant": dict(selection, mode=mode),
+        "belt_drive": dict(selection, mode=mode),
+        "analysis": dict(selection),
     }
-    if args.convention is not None:
-        per_node["plant"]["convention"] = args.convention
-        per_node["analysis"]["convention"] = args.convention
     procs: dict[str, subprocess.Popen] = {}
     env = dict(os.environ)
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
@@ -187,7 +209,7 @@ def run(args: argparse.Namespace) -> int:
         if with_recorder:
             with open(logs / "recorder.log", "w") as log:
                 procs["recorder"] = subprocess.Popen(
-                    recorder_command(bag / "bag", bag / "run_config.yaml", mode),
+                    recorder_command(bag / "bag", run_config, mode),
                     env=env,
                     stdout=log,
                     stderr=subprocess.STDOUT,
@@ -227,7 +249,7 @@ def run(args: argparse.Namespace) -> int:
             codes |= stop_all({"recorder": procs["recorder"]})
     bad = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT)}
     print(f"lubrig rig: run finished in {wall:.1f} s wall; results in {bag}")
-    print(f"  run configuration: {bag / 'run_config.yaml'}")
+    print(f"  run configuration: {run_config}")
     print(f"  node logs:         {logs}")
     if with_recorder:
         print(f"  bag:               {bag / 'bag'}")

@@ -20,10 +20,12 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
+from ..app.contract import BELT_DRIVE_PARAMETERS
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
 from ..core.profiles import PROFILE_KINDS, BandProfile, profile_from_dict, profile_to_dict
 from . import common
+from .interfaces import create_publisher, create_subscription
 
 #: profile.* parameters, their kind(s) and default values (units: m/s, s, Hz, rad), taken from the
 #: core's profile classes; a table profile is given by the path of its CSV.
@@ -57,35 +59,14 @@ class BeltDrive(Node):
         super().__init__("belt_drive")
         config: RunConfig = common.declare_run_selection(self)
         ns = self.get_parameter("topic_namespace").value
-        self.mode = common.check_mode(
-            self.declare_parameter("mode", "sim", common.descriptor("sim | realtime", read_only=True)).value
+        specs = [p for p in BELT_DRIVE_PARAMETERS if not p.name.startswith("profile.")]  # below
+        values = common.declare_parameters(
+            self, specs, {"sample_rate": config.sample_rate, "duration": config.duration}
         )
-        if self.mode == "rig_in_loop":
-            raise ParameterError(
-                "mode='rig_in_loop' is not valid for belt_drive; expected 'sim' or 'realtime'"
-            )
-        self.sample_rate = self._positive("sample_rate", config.sample_rate, "output rate, Hz")
-        self.duration = self._positive("duration", config.duration, "run length, s (sim mode)")
-        self.flow_window = int(
-            self.declare_parameter(
-                "flow_window",
-                200,
-                common.descriptor("sim: samples ahead of the plant's clock", read_only=True),
-            ).value
-        )
-        if not 1 <= self.flow_window <= 900:
-            raise ParameterError(f"flow_window={self.flow_window!r} is not valid; expected 1..900 samples")
-        self.start_delay = float(
-            self.declare_parameter(
-                "start_delay",
-                0.5,
-                common.descriptor("s of wall time to wait once the plant is seen", read_only=True),
-            ).value
-        )
-        if not (common.finite(self.start_delay) and 0.0 <= self.start_delay <= 60.0):
-            raise ParameterError(f"start_delay={self.start_delay!r} is not valid; expected 0..60 s")
-        self.wait_for_subscriber = common.declare_wait_for_subscriber(self)
-        self.realtime_priority = common.declare_realtime_priority(self)
+        self.mode, self.sample_rate, self.duration = values["mode"], values["sample_rate"], values["duration"]
+        self.flow_window, self.start_delay = values["flow_window"], values["start_delay"]
+        self.wait_for_subscriber = values["wait_for_subscriber"]
+        self.realtime_priority = values["realtime_priority"]
         # profile.* defaults come from the selected configuration's band section.
         band = profile_to_dict(config.band)
         self.declare_parameter(
@@ -104,9 +85,7 @@ class BeltDrive(Node):
         self._config_band = config.band
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
-        self.publisher = self.create_publisher(
-            Float64, common.topic(ns, common.BAND_VELOCITY), common.STREAM_QOS
-        )
+        self.publisher = create_publisher(self, ns, "band_velocity")
         self.total = round(self.duration * self.sample_rate)
         self.next_k = 1
         self.plant_k: int | None = None
@@ -114,7 +93,7 @@ class BeltDrive(Node):
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         if self.mode == "sim":
-            self.create_subscription(Clock, common.CLOCK, self._on_clock, common.STREAM_QOS)
+            create_subscription(self, ns, "/clock", self._on_clock)
             self.create_timer(0.05, self._pump)
         else:
             common.enter_realtime(self.realtime_priority, self)
@@ -123,14 +102,6 @@ class BeltDrive(Node):
         self.get_logger().info(
             f"belt_drive: mode={self.mode}, {self.sample_rate:g} Hz, profile {profile_to_dict(self.profile)}"
         )
-
-    def _positive(self, name: str, default: float, text: str) -> float:
-        value = float(
-            self.declare_parameter(name, float(default), common.descriptor(text, read_only=True)).value
-        )
-        if not (common.finite(value) and value > 0.0):
-            raise ParameterError(f"{name}={value!r} is not valid; expected a finite number > 0")
-        return value
 
     def _profile_values(self, updates: dict[str, Any] | None = None) -> dict[str, Any]:
         values = {"kind": self.get_parameter("profile.kind").value}

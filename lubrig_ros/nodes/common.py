@@ -1,7 +1,8 @@
-"""Shared pieces of the lubrig_ros nodes: topic names, QoS profiles, parameter and run helpers.
+"""Shared pieces of the lubrig_ros nodes: parameters from the contract, run selection, loops.
 
-The topic contract lives in docs/topics.md; every name here is relative to the `topic_namespace`
-parameter (default /lubrig), except /clock and /diagnostics.
+Topic names, types, QoS and the node parameters live in app/contract.py (docs/topics.md,
+docs/nodes.md); names there are relative to the `topic_namespace` parameter (default /lubrig),
+except /clock and /diagnostics.
 """
 
 from __future__ import annotations
@@ -9,63 +10,35 @@ from __future__ import annotations
 import gc
 import math
 import os
-import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
 
-import numpy as np
 import rclpy
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
 from ..app import contract
-from ..app.contract import DEFAULT_NAMESPACE, DEFAULT_REALTIME_PRIORITY, MODES
+from ..app.contract import DEFAULT_NAMESPACE, NodeParameter
+from ..app.diagnostics import Status
 from ..app.selection import base_config
+from ..app.timing import DeadlineLoop
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
 from .interfaces import qos_profile
-
-# Topic names relative to the namespace (the contract with types and QoS: app/contract.py).
-BAND_VELOCITY = "band_velocity"
-DISPLACEMENT = "displacement"
-VELOCITY = "velocity"
-FRICTION_COEFFICIENT = "friction_coefficient"
-STATE = "state"
-RUN_CONFIG = "run_config"
-RUN_COMPLETE = "run_complete"
-DOMINANT_FREQUENCY = "dominant_frequency"
-WAVELET_POWER = "wavelet_power"
-WAVELET_IMAGE = "wavelet_image"
-LINEAR_ZONE = "linear_zone"
-CRITICAL_DAMPING_RATIO = "critical_damping_ratio"
-OSCILLATION_GROWING = "oscillation_growing"
-RESET_SERVICE = "plant/reset"
-PAUSE_SERVICE = "plant/pause"
-CLOCK = "/clock"
-DIAGNOSTICS = "/diagnostics"
 
 #: rclpy QoS profiles of the contract's plain-data QoS (app/contract.py).
 STREAM_QOS = qos_profile(contract.STREAM_QOS)
 ANALYSIS_QOS = qos_profile(contract.ANALYSIS_QOS)
 LATCHED_QOS = qos_profile(contract.LATCHED_QOS)
+_LEVELS = {"ok": DiagnosticStatus.OK, "warn": DiagnosticStatus.WARN, "error": DiagnosticStatus.ERROR}
 
 
 def topic(namespace: str, name: str) -> str:
-    """Absolute topic name under the namespace (names starting with '/' are kept)."""
+    """Absolute name of a contract name in the namespace (names starting with '/' are kept)."""
     return contract.resolve(namespace, name)
-
-
-def check_namespace(value: str) -> str:
-    """Validate a topic namespace such as /lubrig (ROS 2's rules: app.contract.validate_namespace)."""
-    return contract.validate_namespace(value, "topic_namespace")
-
-
-def check_mode(value: str) -> str:
-    """Validate the mode parameter."""
-    if value not in MODES:
-        raise ParameterError(f"mode={value!r} is not valid; expected one of {list(MODES)}")
-    return value
 
 
 def descriptor(
@@ -83,56 +56,58 @@ def descriptor(
     return desc
 
 
-def declare_run_selection(node: Node) -> RunConfig:
-    """Declare `case`, `config_file` and `topic_namespace`; return the selected run configuration.
+def declare(node: Node, spec: NodeParameter, default: Any = None) -> Any:
+    """Declare one contract parameter (description, unit, read-only) and return its checked value.
 
-    case in 1..10 loads a study case, else config_file if not empty, else the built-in default
-    (config/rig.yaml). Raises ParameterError with the offending value.
+    `default` is used when the contract's default is None (a value from the run configuration).
+    ParameterError (exit status 2 in spin_node) when the value is not valid for the contract.
+    (Ranges are checked here, with the contract's message, not in the descriptor.)
     """
-    case = node.declare_parameter(
-        "case", 0, descriptor("study case 1..10 (0: use config_file or the default)", read_only=True)
-    ).value
-    config_file = node.declare_parameter(
-        "config_file", "", descriptor("run configuration YAML (empty: default)", read_only=True)
-    ).value
-    node.declare_parameter(
-        "topic_namespace", DEFAULT_NAMESPACE, descriptor("namespace of all topics", read_only=True)
-    )
-    check_namespace(node.get_parameter("topic_namespace").value)
+    value = spec.default if spec.default is not None else default
+    text = spec.description + (f" [{spec.unit}]" if spec.unit and spec.unit not in ("1", "SI") else "")
+    declared = node.declare_parameter(spec.name, value, descriptor(text, read_only=spec.read_only))
+    return spec.check(declared.value)
+
+
+def declare_parameters(
+    node: Node, specs: Iterable[NodeParameter], defaults: Mapping[str, Any] | None = None
+) -> dict[str, Any]:
+    """Declare the contract parameters not declared yet; {name: checked value} of all of them."""
+    defaults = defaults or {}
+    values = {}
+    for spec in specs:
+        if node.has_parameter(spec.name):
+            values[spec.name] = node.get_parameter(spec.name).value
+        else:
+            values[spec.name] = declare(node, spec, defaults.get(spec.name))
+    return values
+
+
+def select_run(case: int, config_file: str) -> RunConfig:
+    """The run configuration of the node parameters: case 1..10, else config_file, else default.
+
+    (app.selection.base_config: the one run selection rule; both given is an error.)
+    """
     return base_config(case, config_file)
 
 
-def declare_wait_for_subscriber(node: Node) -> str:
-    """Parameter `wait_for_subscriber`: node-name prefix that must subscribe before sim data flows."""
-    return str(
-        node.declare_parameter(
-            "wait_for_subscriber",
-            "",
-            descriptor(
-                "sim: hold the run until a node whose name starts with this (e.g. the recorder, "
-                "'lubrig_recorder') subscribes to every output topic; empty = do not wait",
-                read_only=True,
-            ),
-        ).value
-    )
+def declare_run_selection(node: Node) -> RunConfig:
+    """Declare `case`, `config_file` and `topic_namespace`; return the selected run configuration.
+
+    The launcher passes `config_file` = the resolved run's YAML in the run folder; `case` is for
+    starting a node by hand. Raises ParameterError with the offending value.
+    """
+    values = declare_parameters(node, contract.RUN_SELECTION)
+    contract.validate_namespace(values["topic_namespace"], "topic_namespace")
+    return select_run(values["case"], values["config_file"])
 
 
-def declare_realtime_priority(node: Node) -> int:
-    """Parameter `realtime_priority`: SCHED_FIFO priority of the real-time loop thread (0 = off)."""
-    value = int(
-        node.declare_parameter(
-            "realtime_priority",
-            DEFAULT_REALTIME_PRIORITY,
-            descriptor(
-                "realtime: SCHED_FIFO priority 1..99 of the loop thread so other processes cannot "
-                "delay its ticks; 0 keeps normal scheduling",
-                read_only=True,
-            ),
-        ).value
-    )
-    if not 0 <= value <= 99:
-        raise ParameterError(f"realtime_priority={value!r} is not valid; expected 0..99")
-    return value
+def diagnostic_status(status: Status) -> DiagnosticStatus:
+    """The DiagnosticStatus message of a plain-data status."""
+    msg = DiagnosticStatus(name=status.name, hardware_id=status.hardware_id, message=status.message)
+    msg.level = _LEVELS[status.level]
+    msg.values = [KeyValue(key=k, value=v) for k, v in status.values]
+    return msg
 
 
 def enter_realtime(priority: int, node: Node) -> None:
@@ -171,64 +146,6 @@ def finite(value: float) -> bool:
     return isinstance(value, float | int) and math.isfinite(value)
 
 
-class LatencyHistogram:
-    """Latencies in fixed 10 µs bins up to 50 ms (plus an overflow bin).
-
-    Adding is O(1) and a percentile costs one pass over 5,000 bins, whatever the run length: a
-    list of every sample made each diagnostics report hold the GIL for ~11 ms after 200 s at 1 kHz,
-    long enough to make the real-time loop miss ~11 deadlines.
-    """
-
-    BIN_S = 1e-5
-    BINS = 5000
-
-    def __init__(self) -> None:
-        self.counts = np.zeros(self.BINS + 1, dtype=np.int64)
-        self.count = 0
-
-    def add(self, seconds: float) -> None:
-        """Record one latency (negative values count as 0)."""
-        self.counts[min(max(int(seconds / self.BIN_S), 0), self.BINS)] += 1
-        self.count += 1
-
-    def percentiles(self, qs: tuple[float, ...] = (50.0, 99.0)) -> list[float]:
-        """Upper bin edges at the given percentiles, s (0.0 each when empty)."""
-        if self.count == 0:
-            return [0.0 for _ in qs]
-        cumulative = np.cumsum(self.counts)
-        return [
-            float((np.searchsorted(cumulative, q / 100.0 * self.count) + 1) * self.BIN_S) for q in qs
-        ]
-
-
-class DeadlineLoop:
-    """Absolute-deadline periodic loop: sleep most of the period, spin the last few 100 µs."""
-
-    SPIN_S = 0.0003
-
-    def __init__(self, period: float) -> None:
-        self.period = period
-        self.start = time.perf_counter()
-        self.ticks = 0
-
-    def deadline(self, k: int) -> float:
-        """perf_counter time of tick k."""
-        return self.start + k * self.period
-
-    def wait(self, k: int) -> float:
-        """Block until tick k is due; return how late (s) we are for it (≥ 0)."""
-        due = self.deadline(k)
-        while True:
-            now = time.perf_counter()
-            remaining = due - now
-            if remaining <= 0.0:
-                return -remaining
-            if remaining > self.SPIN_S:
-                time.sleep(remaining - self.SPIN_S)
-            else:
-                time.sleep(0)
-
-
 def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     """rclpy.init, build the node, spin until SIGINT/SIGTERM, destroy, shut down; exit status."""
     rclpy.init(args=args)
@@ -263,10 +180,14 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
 
 __all__ = [
     "ANALYSIS_QOS",
+    "DEFAULT_NAMESPACE",
     "LATCHED_QOS",
     "STREAM_QOS",
-    "DeadlineLoop",
+    "DeadlineLoop",  # from app.timing (belt_drive)
+    "declare",
+    "declare_parameters",
     "declare_run_selection",
+    "diagnostic_status",
     "spin_node",
     "topic",
 ]

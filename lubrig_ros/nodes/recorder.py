@@ -32,12 +32,13 @@ from pathlib import Path
 
 import yaml
 
+from lubrig_ros.app.cdr import leading_stamp_ns
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, Topic, documented_topics, resolve
 from lubrig_ros.app.contract import select_topics as _select_topics
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import cdr_string
 from lubrig_ros.bag.repair import repair_bag
-from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, leading_stamp_ns, serialize_string
+from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, serialize_string
 from lubrig_ros.nodes.script import run_script
 
 BATCH_PERIOD_S = 0.02

@@ -1,0 +1,443 @@
+"""The plant's rules without ROS: band sample sequencing, pause/reset, input checks, timing.
+
+`PlantSession` is everything the plant node does that is not ROS. The node feeds it band values
+(`band_input`), calls `tick` from its real-time loop, forwards reset/pause requests and parameter
+updates, and publishes what the session hands to its sinks (`on_sample`, `on_complete`, `log`).
+
+Modes (app/contract.MODES):
+
+* ``sim``: rig time is the session's own. Band samples are queued and integrated strictly in
+  order, one sample per band value; after each the sample is emitted. The run is deterministic,
+  equal to core.run.simulate sample for sample; `on_complete(True)` once `duration` is reached,
+  band values after that are counted (`ignored_after_end`) and dropped.
+* ``realtime`` / ``rig_in_loop``: `tick` advances one sample with the latest good band value
+  (held while no new one arrives). The caller paces the ticks; the session keeps the timing
+  statistics (deadline misses, lateness, band→state latency) and the staleness of the input.
+
+Band values that are not finite or exceed `band_velocity_limit` in magnitude are rejected in every
+mode: counted, the last one reported, never integrated. A sample whose integration fails (an
+exception or a non-finite state) restarts the rig at equilibrium for that band velocity at the
+next sample time, so rig time stays monotonic and a sim run still completes.
+
+Thread safety: every public method takes the session's lock, so the real-time loop thread and the
+executor's callbacks may call it concurrently; sinks are called with the lock held (in order).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..core.integrator import RigIntegrator, Trajectory
+from ..core.params import ParameterError
+from ..core.presets import RunConfig, from_mapping
+from ..core.run import integrator_for
+from .contract import FRICTION_FIELDS, MODES, PLANT_PARAMETERS, RIG_FIELDS
+from .diagnostics import Status
+from .timing import DeadlineLoop, LatencyHistogram
+
+#: Plant parameters that rebuild the run configuration (contract entries with `from_config`).
+CONFIG_PARAMETERS: tuple[str, ...] = tuple(p.name for p in PLANT_PARAMETERS if p.from_config)
+#: Of these, the ones that may change at run time (applied at the next reset).
+RUNTIME_PARAMETERS: frozenset[str] = frozenset(
+    p.name for p in PLANT_PARAMETERS if p.from_config and not p.read_only
+)
+HARDWARE_ID = "lubrig_plant"
+#: Share of deadline misses above which the timing status is WARN.
+MISS_SHARE_WARN = 1e-3
+
+
+@dataclass(frozen=True)
+class PlantSample:
+    """One output sample: what the plant publishes (SI units)."""
+
+    time: float  # s, rig time
+    displacement: float  # m
+    velocity: float  # m/s
+    friction_coefficient: float  # 1
+    band_velocity: float  # m/s, the band velocity this sample was integrated with
+    belt_travel: float  # m, integral of the band velocity since the last reset
+    friction_force: float  # N, μ · normal force
+
+
+@dataclass(frozen=True)
+class PlantSettings:
+    """Read-only node settings (contract defaults)."""
+
+    mode: str = "sim"
+    band_velocity_limit: float = 1e-2
+    stale_timeout: float = 0.05
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ParameterError(f"mode={self.mode!r} is not valid; expected one of {list(MODES)}")
+        for name in ("band_velocity_limit", "stale_timeout"):
+            value = getattr(self, name)
+            if not (isinstance(value, float | int) and math.isfinite(value) and value > 0.0):
+                raise ParameterError(f"{name}={value!r} is not valid; expected a finite number > 0")
+
+
+def _field(data: Mapping[str, Any], path: str) -> Any:
+    for key in path.split("."):
+        data = data[key]
+    return data
+
+
+def parameter_defaults(base: RunConfig) -> dict[str, Any]:
+    """Default values of the configuration parameters (CONFIG_PARAMETERS) from a run configuration."""
+    data = base.to_dict()
+    out: dict[str, Any] = {}
+    for p in PLANT_PARAMETERS:
+        if p.from_config:
+            value = _field(data, p.from_config)
+            out[p.name] = float(value) if p.type == "double" else value
+    return out
+
+
+def config_from(base: RunConfig, values: Mapping[str, Any]) -> RunConfig:
+    """The run configuration of `base` with the plant's configuration parameters applied.
+
+    `values` maps parameter names (CONFIG_PARAMETERS) to values; missing ones keep base's.
+    An empty `convention` means the base configuration's. ParameterError for invalid values.
+    """
+    defaults = parameter_defaults(base)
+
+    def value(name: str) -> Any:
+        return values[name] if name in values else defaults[name]
+
+    data = base.to_dict()
+    data["rig"].update({n: value(f"rig.{n}") for n in RIG_FIELDS})
+    data["rig"]["convention"] = value("convention") or base.rig.convention
+    friction = {n: value(f"friction.{n}") for n in FRICTION_FIELDS if n != "normal_force"}
+    friction["normal_force"] = value("rig.normal_force")
+    data["rig"]["friction"] = friction
+    data["simulation"].update(
+        {n: value(n) for n in ("duration", "sample_rate", "rtol", "initial_perturbation")}
+    )
+    return from_mapping(data)
+
+
+def _nothing(*_args: Any) -> None:
+    return None
+
+
+class PlantSession:
+    """The plant's state and rules (see the module docstring)."""
+
+    def __init__(
+        self,
+        base: RunConfig,
+        settings: PlantSettings | None = None,
+        *,
+        on_sample: Callable[[PlantSample], None] = _nothing,
+        on_complete: Callable[[bool], None] = _nothing,
+        log: Callable[[str, str], None] = _nothing,
+        clock: Callable[[], float] = time.perf_counter,
+        config: RunConfig | None = None,
+    ) -> None:
+        self.base = base
+        self.settings = settings or PlantSettings()
+        self.mode = self.settings.mode
+        self.on_sample, self.on_complete, self.log, self.clock = on_sample, on_complete, log, clock
+        self.lock = threading.RLock()
+        self.config = config if config is not None else base
+        self.integrator: RigIntegrator = integrator_for(self.config)
+        self.total = self.config.samples
+        self.sample_index = 0
+        self.paused = False
+        self.complete = False
+        self.restart_clock = False  # realtime: the caller restarts its deadline loop (reset, resume)
+        self._queue: deque[float] = deque()
+        self._emitted_initial = False
+        # band input bookkeeping
+        self.latest_band = float(self.config.band(0.0))
+        self.latest_band_recv: float | None = None  # clock() of the latest good value
+        self.new_band = False
+        self.received = 0
+        self.rejected = 0
+        self.last_rejected: float | None = None
+        self.rejected_since_report = 0
+        self.ignored_after_end = 0
+        self.integration_errors = 0
+        # belt travel (trapezoid rule over the emitted samples)
+        self.belt_travel = 0.0
+        self._last_band: tuple[float, float] | None = None
+        # timing (realtime)
+        self.ticks = 0
+        self.misses = 0
+        self.max_late = 0.0
+        self.latencies = LatencyHistogram()
+
+    # ---- configuration -------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        """Rig time of the latest sample, s."""
+        return float(self.integrator.time)
+
+    @property
+    def period(self) -> float:
+        """Sample period, s."""
+        return 1.0 / self.config.sample_rate
+
+    def check_update(self, current: Mapping[str, Any], updates: Mapping[str, Any]) -> str | None:
+        """Why a parameter update (applied at the next reset) is invalid, or None when it is fine.
+
+        `current` holds the present values of the configuration parameters; only names in
+        RUNTIME_PARAMETERS are considered (others are not configuration).
+        """
+        relevant = {k: v for k, v in updates.items() if k in RUNTIME_PARAMETERS}
+        if not relevant:
+            return None
+        try:
+            config_from(self.base, {**current, **relevant})
+        except (ParameterError, ValueError, TypeError) as exc:
+            return str(exc)
+        return None
+
+    def reset(self, config: RunConfig) -> None:
+        """Rig time back to 0 with `config` (e.g. config_from the current parameters).
+
+        sim: the queue is dropped and the initial state is emitted again with the next band
+        value; realtime / rig in the loop: the rig restarts at equilibrium for the band value
+        it holds and the caller restarts its deadline loop (`restart_clock`).
+        """
+        with self.lock:
+            self.config = config
+            self.integrator = integrator_for(config)
+            self.total = config.samples
+            self.sample_index = 0
+            self.complete = False
+            self._queue.clear()
+            self._emitted_initial = False
+            if self.mode != "sim":
+                self.integrator.reset(band_velocity=self.latest_band)
+                self.restart_clock = True
+            self.belt_travel, self._last_band = 0.0, None
+            self.on_complete(False)
+
+    def set_paused(self, paused: bool) -> str:
+        """Pause (True) or resume; returns 'paused' or 'running'. sim: resuming drains the queue."""
+        with self.lock:
+            was = self.paused
+            self.paused = bool(paused)
+            if was and not self.paused and self.mode != "sim":
+                self.restart_clock = True
+            if not self.paused:
+                self._drain()
+            return "paused" if self.paused else "running"
+
+    def take_restart_clock(self) -> bool:
+        """True once after a reset or a resume in realtime modes (the caller restarts its loop)."""
+        with self.lock:
+            restart, self.restart_clock = self.restart_clock, False
+            return restart
+
+    # ---- band input ----------------------------------------------------------------------
+    def valid_band(self, value: Any) -> bool:
+        """True for a finite float with |value| <= band_velocity_limit."""
+        return (
+            isinstance(value, float)
+            and math.isfinite(value)
+            and abs(value) <= self.settings.band_velocity_limit
+        )
+
+    def band_input(self, value: float) -> bool:
+        """One band value from the topic; False if rejected. sim: integrates what it can."""
+        now = self.clock()
+        with self.lock:
+            self.received += 1
+            if not self.valid_band(value):
+                self.rejected += 1
+                self.rejected_since_report += 1
+                self.last_rejected = value
+                return False
+            if self.mode == "sim":
+                self._queue.append(value)
+                self._drain()
+            else:
+                self.latest_band = value
+                self.latest_band_recv = now
+                self.new_band = True
+            return True
+
+    # ---- sim -----------------------------------------------------------------------------
+    def emit_initial(self) -> None:
+        """Emit the current state once (sim: done before the first sample; realtime: at start)."""
+        with self.lock:
+            if not self._emitted_initial:
+                self._emit(self.integrator.current())
+                self._emitted_initial = True
+
+    def _drain(self) -> None:
+        if self.mode != "sim":
+            return
+        self.emit_initial()
+        while self._queue and not self.paused:
+            band = self._queue.popleft()
+            if self.complete:
+                self.ignored_after_end += 1
+                continue
+            traj = self._advance(band)
+            self.sample_index += 1
+            self._emit(traj)
+            if self.sample_index >= self.total:
+                self.complete = True
+                self.on_complete(True)
+                self.log("info", f"sim: run complete at t = {self.integrator.time:g} s")
+
+    # ---- realtime / rig in the loop ------------------------------------------------------
+    def tick(self, deadline: float | None = None, late: float = 0.0) -> None:
+        """Realtime: advance one sample with the latest good band value and emit it.
+
+        `deadline` (clock() time the tick was due) and `late` (how late it started) feed the
+        timing statistics: a tick that finishes more than one period after its deadline is a
+        deadline miss; the latency from a new band value's arrival to its sample is recorded.
+        """
+        with self.lock:
+            recv = self.latest_band_recv if self.new_band else None
+            self.new_band = False
+            self._emit(self._advance(self.latest_band))
+            self._emitted_initial = True
+            done = self.clock()
+            self.ticks += 1
+            if recv is not None:
+                self.latencies.add(done - recv)
+            self.max_late = max(self.max_late, late)
+            if deadline is not None and done - deadline > self.period:
+                self.misses += 1
+
+    def run_realtime(self, stopped: Callable[[], bool]) -> None:
+        """Realtime: emit the initial state, then tick at the sample rate until stopped().
+
+        Absolute deadlines (app.timing.DeadlineLoop); paused: wait; after a reset or a resume
+        the deadlines restart from now. Exceptions of a tick propagate to the caller.
+        """
+        loop = DeadlineLoop(self.period)
+        k = 0
+        self.emit_initial()
+        while not stopped():
+            if self.paused:
+                time.sleep(0.01)
+                continue
+            if self.take_restart_clock():
+                loop, k = DeadlineLoop(self.period), 0
+            k += 1
+            late = loop.wait(k)
+            self.tick(loop.deadline(k), late)
+
+    # ---- integration and output ----------------------------------------------------------
+    def _advance(self, band: float) -> Trajectory:
+        """One sample; a failed one restarts the rig at equilibrium at the next sample time.
+
+        Restarting there (not at t = 0) keeps rig time monotonic and the sample count right, so a
+        sim run still completes and belt_drive's flow control does not stall.
+        """
+        t_next = self.integrator.time + self.integrator.dt
+        try:
+            traj = self.integrator.advance(np.array([band]))
+            if math.isfinite(traj.displacement[0]) and math.isfinite(traj.velocity[0]):
+                return traj
+            problem = "non-finite state"
+        except (ValueError, ArithmeticError, RuntimeError) as exc:
+            problem = str(exc)
+        self.integration_errors += 1
+        self.log(
+            "error",
+            f"integration failed at t = {t_next:.6g} s ({problem}); rig restarted at equilibrium "
+            f"for band velocity {band!r} m/s",
+        )
+        self.integrator.reset(band_velocity=band, time=t_next)
+        return self.integrator.current()
+
+    def _emit(self, traj: Trajectory) -> None:
+        x = float(traj.displacement[0])
+        v = float(traj.velocity[0])
+        mu = float(traj.friction_coefficient[0])
+        if not (math.isfinite(x) and math.isfinite(v) and math.isfinite(mu)):
+            return  # never published (cannot happen after _advance's check; kept as the last guard)
+        t, band = float(traj.time[0]), float(traj.band_velocity[0])
+        if self._last_band is not None and t > self._last_band[0]:  # belt travel, trapezoid rule
+            self.belt_travel += 0.5 * (band + self._last_band[1]) * (t - self._last_band[0])
+        self._last_band = (t, band)
+        force = mu * self.config.rig.friction.normal_force
+        self.on_sample(PlantSample(t, x, v, mu, band, self.belt_travel, force))
+
+    # ---- diagnostics ---------------------------------------------------------------------
+    def input_age(self) -> float | None:
+        """Seconds since the latest good band value (None: none yet)."""
+        recv = self.latest_band_recv
+        return None if recv is None else self.clock() - recv
+
+    def stale(self) -> bool:
+        """Realtime modes, running: no good band input for more than stale_timeout."""
+        age = self.input_age()
+        return (
+            self.mode != "sim"
+            and not self.paused
+            and (age is None or age > self.settings.stale_timeout)
+        )
+
+    def diagnostics(self) -> list[Status]:
+        """The timing and band-input statuses; starts a new 'rejected since last report' count."""
+        with self.lock:
+            p50, p99 = self.latencies.percentiles()
+            samples = self.ticks if self.mode != "sim" else self.sample_index
+            share = self.misses / samples if samples else 0.0
+            timing = Status(
+                name="lubrig/plant: timing",
+                hardware_id=HARDWARE_ID,
+                level="warn" if share > MISS_SHARE_WARN else "ok",
+                message=(
+                    f"{self.misses} deadline misses in {samples} samples"
+                    if self.mode != "sim"
+                    else ("complete" if self.complete else "running")
+                ),
+                values=(
+                    ("mode", self.mode),
+                    ("rig_time_s", f"{self.integrator.time:.6f}"),
+                    ("samples", str(samples)),
+                    ("deadline_misses", str(self.misses)),
+                    ("deadline_miss_share", f"{share:.6f}"),
+                    ("max_lateness_s", f"{self.max_late:.6f}"),
+                    ("latency_p50_s", f"{p50:.6f}"),
+                    ("latency_p99_s", f"{p99:.6f}"),
+                    ("latency_samples", str(self.latencies.count)),
+                    ("integration_errors", str(self.integration_errors)),
+                    ("paused", str(self.paused).lower()),
+                    ("run_complete", str(self.complete).lower()),
+                ),
+            )
+            age = self.input_age()
+            stale = self.stale()
+            problems = []
+            if stale:
+                problems.append("stale input, holding last good value")
+            if self.rejected_since_report:
+                problems.append(f"{self.rejected_since_report} bad band value(s) rejected")
+            band = Status(
+                name="lubrig/plant: band input",
+                hardware_id=HARDWARE_ID,
+                level="warn" if problems else "ok",
+                message="; ".join(problems) or "ok",
+                values=(
+                    ("received", str(self.received)),
+                    ("rejected", str(self.rejected)),
+                    ("rejected_since_last_report", str(self.rejected_since_report)),
+                    ("last_rejected_value", repr(self.last_rejected)),
+                    ("valid_range_m_s", f"finite, |v| <= {self.settings.band_velocity_limit:g}"),
+                    ("held_band_velocity_m_s", repr(self.latest_band)),
+                    ("stale", str(stale).lower()),
+                    ("input_age_s", "none" if age is None else f"{age:.4f}"),
+                    ("stale_timeout_s", f"{self.settings.stale_timeout:g}"),
+                    ("ignored_after_run_end", str(self.ignored_after_end)),
+                ),
+            )
+            self.rejected_since_report = 0
+            return [timing, band]
