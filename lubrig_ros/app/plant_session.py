@@ -278,7 +278,8 @@ class PlantSession:
     def _drain(self) -> None:
         if self.mode != "sim":
             return
-        self.emit_initial()
+        if not self._emitted_initial:
+            self.emit_initial()
         while self._queue and not self.paused:
             band = self._queue.popleft()
             if self.complete:
