@@ -31,7 +31,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -54,9 +54,8 @@ HARDWARE_ID = "lubrig_plant"
 MISS_SHARE_WARN = 1e-3
 
 
-@dataclass(frozen=True)
-class PlantSample:
-    """One output sample: what the plant publishes (SI units)."""
+class PlantSample(NamedTuple):
+    """One output sample: what the plant publishes (SI units). A tuple: cheap to make per sample."""
 
     time: float  # s, rig time
     displacement: float  # m
