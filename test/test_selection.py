@@ -21,7 +21,8 @@ def test_sources_and_not_given_values() -> None:
     assert base_config(3) == load_case(3) == RunSelection(case="3").resolve()
     path = Path(__file__).resolve().parents[1] / "config" / "stickslip.yaml"
     assert base_config(None, path) == load_config(path) == RunSelection(config_file=path).resolve()
-    assert base_config(2, path) == load_case(2)  # a case wins, as the node parameters did
+    with pytest.raises(ParameterError, match="both given"):  # one source, as on the command line
+        base_config(2, path)
     assert RunSelection(config_file=path).node_parameters() == {"config_file": str(path)}
     assert RunSelection(case=4).node_parameters() == {"case": 4}
     assert RunSelection().node_parameters() == {}

@@ -43,10 +43,14 @@ def base_config(case: int | str | None = None, config_file: str | Path | None = 
     """The selected configuration before overrides: case, else file, else the default.
 
     `case` None or 0 and `config_file` None or "" mean "not given" (the nodes' parameter
-    defaults); a case takes precedence over a file (as the node parameters always did).
+    defaults). Both given is an error naming both (before, a node silently took the case).
     """
     has_case = case is not None and case != 0 and case != ""
     has_file = config_file is not None and str(config_file) != ""
+    if has_case and has_file:
+        raise ParameterError(
+            f"case={case!r} and config_file={str(config_file)!r} both given; select one source"
+        )
     if case is not None and has_case:
         return load_case(case_number(case))
     if config_file is not None and has_file:
