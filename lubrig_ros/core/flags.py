@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from .friction import stick_velocity
+from .friction import stick_velocity_or_none
 from .params import RigParameters
 from .stability import ZONE_NAMES, linear_stability
 from .wavelet import WaveletResult, check_signal, cwt, fourier_factor
@@ -151,7 +151,9 @@ def evaluate_flags(
     The growth rate comes from `wavelet` (a transform of the displacement) if given, else from
     `displacement` and `dt`. The oscillation is 'growing'/'decaying' when the fitted envelope
     changes by more than a factor 2 over the fitted span, else 'steady'. The stick threshold
-    defaults to the friction-peak velocity (core.friction.stick_velocity).
+    defaults to the friction-peak velocity (core.friction.stick_velocity); for a friction law
+    without a peak there is no default, and the stick fields stay None unless one is given. The
+    zone is None for such a law too; the linear verdict is still given.
     """
     values: dict[str, Any] = {}
     # A band at rest has no sliding equilibrium: no linear verdict and no default stick threshold.
@@ -162,7 +164,7 @@ def evaluate_flags(
         verdict = linear_stability(abs(float(band_velocity)), rig)
         values.update(
             zone=verdict.zone,
-            zone_name=ZONE_NAMES[verdict.zone],
+            zone_name=None if verdict.zone is None else ZONE_NAMES[verdict.zone],
             linear_stable=verdict.stable,
             effective_damping=verdict.effective_damping,
             critical_damping_ratio=verdict.critical_damping_ratio,
@@ -189,7 +191,7 @@ def evaluate_flags(
             raise ValueError("dt is required with relative_velocity (sample interval in s)")
         threshold = stick_threshold_m_s
         if threshold is None:
-            threshold = stick_velocity(rig.friction)
+            threshold = stick_velocity_or_none(rig.friction)  # None: the law has no peak
         if threshold is not None:
             stats = detect_stick(relative_velocity, dt, threshold)
             values.update(

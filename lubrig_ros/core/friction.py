@@ -1,97 +1,120 @@
-"""Friction law μ(v) of the boundary-lubricated interface and its analytic slope dμ/dv.
+"""Friction coefficient μ(v), its analytic slope dμ/dv and its landmarks, for any friction law.
 
-The law combines bonded junctions (elastic stress, stretched until thermal break or yield) and
-free junctions (shear-thinning viscous stress); see docs/model.md. The scalar kernel is compiled
-with numba (kernels.py) so that the integrator can call it; the public functions are vectorized over numpy
-arrays. Evaluation is stable over 1e-15 … 1e-2 m/s: the small-u cancellations are replaced by
-series, and large u only underflows exp(−u) to zero.
+The law is the one the parameter set belongs to (core.friction_laws): FrictionParameters (the
+default, junction kinetics: core.junction; see docs/model.md) or another registered law's
+parameters (e.g. core.stribeck.StribeckParameters). The public functions are vectorized over numpy
+arrays; the scalar kernels are compiled with numba and reach the integrator through core.kernels.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+import functools
+from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq
 
-from .kernels import _mu_and_slope_array, mu_and_slope
+from .friction_laws import CurveLandmark, FrictionLaw, law_for
 from .params import FrictionParameters, ParameterError
 
+__all__ = [
+    "CurveLandmark",
+    "friction_coefficient",
+    "friction_landmarks",
+    "friction_law",
+    "friction_minimum",
+    "friction_peak",
+    "friction_slope",
+    "stick_velocity",
+    "stick_velocity_or_none",
+]
 
-def _params_array(params: FrictionParameters | None) -> np.ndarray:
-    return np.asarray((params or FrictionParameters()).as_array(), dtype=np.float64)
+
+def friction_law(params: Any | None = None) -> FrictionLaw:
+    """The law of a parameter set (None: the default junction-kinetics parameters)."""
+    return law_for(params if params is not None else FrictionParameters())
 
 
-def _evaluate(
-    velocity: np.typing.ArrayLike, params: FrictionParameters | None
-) -> tuple[np.ndarray, np.ndarray]:
+def _evaluate(velocity: np.typing.ArrayLike, params: Any | None) -> tuple[np.ndarray, np.ndarray]:
+    params = params if params is not None else FrictionParameters()
     v = np.asarray(velocity, dtype=np.float64)
     if np.isnan(v).any():
         raise ValueError("velocity contains NaN; expected finite sliding velocities in m/s")
-    mu, dmu = _mu_and_slope_array(np.ascontiguousarray(v).ravel(), _params_array(params))
+    mu, dmu = law_for(params).evaluate(np.ascontiguousarray(v).ravel(), params)
     return mu.reshape(v.shape), dmu.reshape(v.shape)
 
 
-def friction_coefficient(
-    velocity: np.typing.ArrayLike, params: FrictionParameters | None = None
-) -> np.ndarray:
+def friction_coefficient(velocity: np.typing.ArrayLike, params: Any | None = None) -> np.ndarray:
     """μ at sliding velocity v (m/s), odd in v; returns an array of v's shape."""
     return _evaluate(velocity, params)[0]
 
 
-def friction_slope(
-    velocity: np.typing.ArrayLike, params: FrictionParameters | None = None
-) -> np.ndarray:
+def friction_slope(velocity: np.typing.ArrayLike, params: Any | None = None) -> np.ndarray:
     """Analytic dμ/dv in s/m at sliding velocity v (m/s), even in v."""
     return _evaluate(velocity, params)[1]
 
 
-@dataclass(frozen=True)
-class CurveLandmark:
-    """A stationary point of μ(v): where and how large."""
-
-    velocity: float  # m/s
-    mu: float
-
-
-def _stationary_point(params: FrictionParameters, low: float, high: float) -> CurveLandmark:
-    p = _params_array(params)
-
-    def slope(log_v: float) -> float:
-        return mu_and_slope(10.0**log_v, p)[1]
-
-    a, b = math.log10(low), math.log10(high)
-    if not slope(a) * slope(b) < 0.0:
-        raise ParameterError(
-            f"the friction law has no stationary point between {low:.3g} and {high:.3g} m/s with "
-            f"these parameters (activation_exponent={params.activation_exponent}, "
-            f"shear_thinning_exponent={params.shear_thinning_exponent}, "
-            f"critical velocity {params.critical_velocity:.3g} m/s): its zones are undefined"
-        )
-    log_v = brentq(slope, a, b, xtol=1e-14, rtol=1e-14)
-    v = 10.0**log_v
-    return CurveLandmark(velocity=v, mu=float(mu_and_slope(v, p)[0]))
+@functools.lru_cache(maxsize=64)
+def _landmarks(params: Any) -> tuple[CurveLandmark | None, CurveLandmark | None]:
+    law = law_for(params)
+    peak = law.peak(params)
+    return peak, (law.minimum(params) if peak is not None else None)
 
 
-def friction_peak(params: FrictionParameters | None = None) -> CurveLandmark:
-    """Maximum of μ: end of zone 1 (rising, stable) and start of zone 2 (falling)."""
-    params = params or FrictionParameters()
-    v0 = params.critical_velocity
-    return _stationary_point(params, 1e-2 * v0, 1e2 * v0)
+def friction_landmarks(params: Any | None = None) -> tuple[CurveLandmark | None, CurveLandmark | None]:
+    """(peak, minimum) of μ for v > 0; each None where the law has none with these parameters.
+
+    Cached per parameter set (frozen, hashable): the stability verdict asks for them often.
+    """
+    return _landmarks(params if params is not None else FrictionParameters())
 
 
-def friction_minimum(params: FrictionParameters | None = None) -> CurveLandmark:
-    """Minimum of μ: end of zone 2 and start of zone 3 (rising again, viscous)."""
-    params = params or FrictionParameters()
+def _missing(params: Any, what: str, low: str, high: str) -> ParameterError:
+    law = law_for(params)
+    return ParameterError(
+        f"the {law.name} friction law has no {what} (no stationary point between {low} and {high}) "
+        f"with these parameters ({law.describe(params)}): its zones are undefined"
+    )
+
+
+def friction_peak(params: Any | None = None) -> CurveLandmark:
+    """Maximum of μ: end of zone 1 (rising, stable) and start of zone 2 (falling).
+
+    ParameterError when the law has no peak with these parameters (see friction_landmarks).
+    """
+    params = params if params is not None else FrictionParameters()
+    peak = friction_landmarks(params)[0]
+    if peak is None:
+        if isinstance(params, FrictionParameters):
+            v0 = params.critical_velocity
+            raise _missing(params, "friction peak", f"{1e-2 * v0:.3g}", f"{1e2 * v0:.3g} m/s")
+        raise _missing(params, "friction peak", "its rising and", "falling branch")
+    return peak
+
+
+def friction_minimum(params: Any | None = None) -> CurveLandmark:
+    """Minimum of μ: end of zone 2 and start of zone 3 (rising again, viscous).
+
+    ParameterError when the law has no minimum (or no peak) with these parameters.
+    """
+    params = params if params is not None else FrictionParameters()
     peak = friction_peak(params)
-    return _stationary_point(params, 10.0 * peak.velocity, 1e-2)
+    minimum = friction_landmarks(params)[1]
+    if minimum is None:
+        raise _missing(params, "friction minimum", f"{10.0 * peak.velocity:.3g}", "1e-2 m/s")
+    return minimum
 
 
-def stick_velocity(params: FrictionParameters | None = None) -> float:
+def stick_velocity(params: Any | None = None) -> float:
     """|v_rel| (m/s) below which the interface sticks: the velocity of the friction peak.
 
     Below it μ rises with velocity (zone 1, junction stretching), so the interface acts as static
-    friction. One definition for the run summaries and the online stick flags.
+    friction. One definition for the run summaries and the online stick flags. ParameterError
+    when the law has no peak (see stick_velocity_or_none).
     """
     return friction_peak(params).velocity
+
+
+def stick_velocity_or_none(params: Any | None = None) -> float | None:
+    """stick_velocity, or None when the law has no friction peak with these parameters."""
+    peak = friction_landmarks(params)[0]
+    return None if peak is None else peak.velocity

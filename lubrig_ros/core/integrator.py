@@ -1,6 +1,7 @@
 """Stiff integration of the rig  m ẍ + c ẋ + k x = N μ(v_band − γ ẋ)  sample by sample.
 
-Method (compiled in kernels.py): 3-stage Radau IIA (order 5, L-stable, stiffly accurate) with
+Method (compiled in kernels.py, one stepper for every friction law of core.friction_laws):
+3-stage Radau IIA (order 5, L-stable, stiffly accurate) with
 adaptive substeps and the embedded error estimate of Hairer & Wanner (as in scipy's Radau). The
 stage equations are solved by full Newton on the three stage velocities only (displacements are
 linear in them). Sticking (v_rel ≈ 0, where μ ∝ |v|^0.38 and dμ/dv reaches 1e11 s/m) needs two
@@ -17,10 +18,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from .kernels import _A, _A2, _C, _E, OK, _advance, _mu_and_slope_array, mu_and_slope
+from .friction_laws import law_for
+from .kernels import OK, advance, evaluate_law
 from .params import RigParameters
 
 
@@ -74,6 +77,7 @@ class RigIntegrator:
     _state: np.ndarray = field(init=False, repr=False)
     _rig_array: np.ndarray = field(init=False, repr=False)
     _fp: np.ndarray = field(init=False, repr=False)
+    _kernel: Any = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         for name in ("initial_band_velocity", "sample_rate", "rtol", "initial_perturbation"):
@@ -86,9 +90,17 @@ class RigIntegrator:
         if not 1e-13 <= self.rtol <= 1e-2:
             raise ValueError(f"rtol={self.rtol!r} is outside the valid range [1e-13, 1e-2]")
         self._rig_array = np.array(
-            [self.rig.mass, self.rig.damping, self.rig.stiffness, self.rig.velocity_factor]
+            [
+                self.rig.mass,
+                self.rig.damping,
+                self.rig.stiffness,
+                self.rig.velocity_factor,
+                self.rig.friction.normal_force,
+            ]
         )
-        self._fp = np.asarray(self.rig.friction.as_array(), dtype=np.float64)
+        law = law_for(self.rig.friction)
+        self._kernel = law.kernel
+        self._fp = np.ascontiguousarray(law.pack(self.rig.friction), dtype=np.float64)
         self.reset()
 
     @property
@@ -99,7 +111,7 @@ class RigIntegrator:
     @property
     def equilibrium_displacement(self) -> float:
         """x0 for the initial band velocity, m."""
-        mu = mu_and_slope(self.initial_band_velocity, self._fp)[0]
+        mu = float(evaluate_law(self._kernel, np.array([self.initial_band_velocity]), self._fp)[0][0])
         return mu * self.rig.friction.normal_force / self.rig.stiffness
 
     def reset(self, band_velocity: float | None = None, time: float = 0.0) -> None:
@@ -151,9 +163,9 @@ class RigIntegrator:
         out_w = np.empty(band.size)
         t_start = self._state[0]
         atol_x, atol_w = self._scales
-        status = _advance(
-            self._state, band, self.dt, self._rig_array, self._fp, self.rtol, atol_x, atol_w,
-            _A, _A2, _C, _E, out_x, out_w,
+        status = advance(
+            self._state, band, self.dt, self._rig_array, self._kernel, self._fp, self.rtol, atol_x, atol_w,
+            out_x, out_w,
         )
         if status != OK:
             raise IntegrationError(
@@ -167,7 +179,7 @@ class RigIntegrator:
         self, time: np.ndarray, x: np.ndarray, w: np.ndarray, band: np.ndarray
     ) -> Trajectory:
         relative = self.rig.relative_velocity(band, w)
-        mu = _mu_and_slope_array(np.ascontiguousarray(relative), self._fp)[0]  # params already packed
+        mu = evaluate_law(self._kernel, relative, self._fp)[0]  # params already packed
         return Trajectory(
             time=time,
             displacement=x,

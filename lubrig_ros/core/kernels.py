@@ -1,11 +1,31 @@
-"""Compiled (numba) kernels: the friction law μ(v), dμ/dv and the Radau IIA rig stepper.
+"""Compiled (numba) kernels: the Radau IIA rig stepper and the one adapter to friction-law kernels.
 
-They live in one module on purpose: numba's on-disk cache is keyed on the source file of each
-compiled function only, so a kernel that calls a kernel of another file would keep running a stale
-copy of it after that file changed. With both here, any change invalidates the whole cache.
+Friction laws reach the compiled code through one adapter (this module):
 
-Friction: the closed forms of the junction-kinetics law cancel catastrophically for small
-u = v0/v and are replaced by series there; large u only underflows exp(−u) to zero.
+* a law's scalar kernel ``(v, p) -> (μ, dμ/dv)`` is decorated with :func:`law_kernel`, which
+  compiles it for :data:`LAW_SIGNATURE` (v float64, p a contiguous float64 array) with its own
+  on-disk cache;
+* the stepper (:func:`advance`) and the vectorized evaluation (:func:`evaluate_law`) are compiled
+  ONCE for a first-class function argument of type :data:`LAW_KERNEL` and call the law through its
+  address. There is one compiled stepper for every law.
+
+Why this design (measured, see docs/extending.md): numba offers three ways to hand a function to
+a compiled one. (1) Passing the dispatcher itself (argument typed ``Dispatcher``) specializes the
+callee per law and inlines it, but such a signature never hits numba's cache: every process
+recompiled the stepper (≈ 4–6 s) and each run added a new cache file. (2) A factory building a
+stepper per law (closure) is cached by the factory's file, so a change in the law's file would
+keep running a stale compiled copy (the bug that once had every kernel in this one file). (3) A
+first-class function type (what this module does): the stepper is compiled and cached once; the
+law's kernel is compiled and cached by its own file, and the stepper only holds its address at
+call time. A change to a law's file therefore recompiles that law's kernel and nothing else, and
+no compiled code of one file ever embeds code of another (test/test_friction_laws.py checks it in
+fresh processes). The price is an indirect, not inlined, call to μ(v) — 3 to 4 per Newton
+iteration — which costs a few per cent of integration time (figures in docs/extending.md); the
+default law's results stay bit-identical (no fast-math: inlining does not change floating point).
+
+Cache staleness inside one file still matters: helpers a kernel calls directly (numba inlines
+njit callees into the caller's cached code) must live in the kernel's own file, as
+core/junction.py does.
 
 Integrator: 3-stage Radau IIA (order 5, L-stable, stiffly accurate) with adaptive substeps and the
 embedded error estimate of Hairer & Wanner (as in scipy's Radau); full Newton on the three stage
@@ -14,89 +34,50 @@ velocities (displacements are linear in them) with a trust region in log|v_rel|.
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.core.types import FunctionType
 
-# Below this u = v0/v the closed forms cancel catastrophically: use series instead.
-_SERIES_U = 0.1
-
-
-@njit(cache=True)
-def _bernoulli_ratio(u: float) -> float:
-    """B(u) = u / (e^u − 1), B(0) = 1."""
-    if u < _SERIES_U:
-        u2 = u * u
-        return 1.0 - 0.5 * u + u2 / 12.0 - u2 * u2 / 720.0 + u2 * u2 * u2 / 30240.0
-    e = math.exp(-u)
-    return u * e / (-math.expm1(-u))
+#: Type of a law's p: a contiguous, writable float64 array.
+LAW_PARAMETERS = types.Array(types.float64, 1, "C")
+#: Signature every law kernel is compiled for: (v, p) -> (μ, dμ/dv).
+LAW_SIGNATURE = types.UniTuple(types.float64, 2)(types.float64, LAW_PARAMETERS)
+#: The first-class function type the stepper receives a law kernel as.
+LAW_KERNEL = FunctionType(LAW_SIGNATURE)
 
 
-@njit(cache=True)
-def _stretch_ratio(u: float) -> float:
-    """r(u) = [1 − (1+u)e^−u] / (1 − e^−u) = 1 − B(u); s = v τ0 r(u)."""
-    if u < _SERIES_U:
-        u2 = u * u
-        return u / 2.0 - u2 / 12.0 + u2 * u2 / 720.0 - u2 * u2 * u2 / 30240.0
-    return 1.0 - _bernoulli_ratio(u)
+def law_kernel(function: Callable[..., tuple[float, float]]) -> Any:
+    """Decorator: compile a friction law's scalar kernel (v, p) -> (μ, dμ/dv) for the stepper.
 
-
-@njit(cache=True)
-def _stretch_slope_ratio(u: float) -> float:
-    """q(u) = ds/dv / τ0 = 1 − u² e^−u / (1 − e^−u)²."""
-    if u < _SERIES_U:
-        u2 = u * u
-        u4 = u2 * u2
-        return u2 / 12.0 - u4 / 240.0 + u4 * u2 / 6048.0 - u4 * u4 / 172800.0
-    e = math.exp(-u)
-    m = -math.expm1(-u)
-    return 1.0 - u * u * e / (m * m)
-
-
-@njit(cache=True)
-def mu_and_slope(v: float, p: np.ndarray) -> tuple[float, float]:
-    """μ(v) and dμ/dv for one velocity; p is FrictionParameters.as_array() as float64 array.
-
-    μ is odd and dμ/dv even; at v = 0 the slope is +inf (μ ∝ |v|^(1+k2) there).
+    Compiled eagerly for LAW_SIGNATURE with numba's on-disk cache (keyed on the kernel's own file).
     """
-    if v == 0.0:
-        return 0.0, math.inf
-    sign = 1.0
-    if v < 0.0:
-        sign = -1.0
-        v = -v
-    g_mod, thick, d_pen, l_star, tau0 = p[0], p[1], p[2], p[3], p[4]
-    tau_ref, v_ref, k1, eta_ref, k2 = p[5], p[6], p[7], p[8], p[9]
-    area, normal = p[10], p[11]
-    u = (l_star / tau0) / v
-    lifetime = tau0 * (-math.expm1(-u))  # <t_b>
-    stretch = v * tau0 * _stretch_ratio(u)  # s(v)
-    log_ratio = math.log(v / v_ref)  # one log, two exp: cheaper than two powers
-    tau = tau_ref * math.exp(k1 * log_ratio)  # τ(v)
-    phi = lifetime / (lifetime + tau)  # bonded fraction
-    eta = eta_ref * math.exp(k2 * log_ratio)
-    scale = area / normal
-    elastic = g_mod / thick
-    mu = scale * (elastic * phi * stretch + (1.0 - phi) * eta * v / d_pen)
-    dphi = phi * (1.0 - phi) * (-_bernoulli_ratio(u) - k1) / v
-    dstretch = tau0 * _stretch_slope_ratio(u)
-    dmu = scale * (
-        elastic * (dphi * stretch + phi * dstretch)
-        + (1.0 + k2) * (1.0 - phi) * eta / d_pen
-        - dphi * eta * v / d_pen
-    )
-    return sign * mu, dmu
+    return njit(LAW_SIGNATURE, cache=True)(function)
 
 
-@njit(cache=True)
-def _mu_and_slope_array(v: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _evaluate_law_py(law: Any, v: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     mu = np.empty(v.size)
     dmu = np.empty(v.size)
-    flat = v.ravel()
-    for i in range(flat.size):
-        mu[i], dmu[i] = mu_and_slope(flat[i], p)
+    for i in range(v.size):
+        mu[i], dmu[i] = law(v[i], p)
     return mu, dmu
+
+
+@functools.cache
+def _evaluator() -> Any:
+    array = types.Array(types.float64, 1, "C")
+    signature = types.Tuple((array, array))(LAW_KERNEL, array, LAW_PARAMETERS)
+    return njit(signature, cache=True)(_evaluate_law_py)
+
+
+def evaluate_law(kernel: Any, velocity: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """μ and dμ/dv of a law kernel at every velocity of a 1-D float64 array (p: law.pack(params))."""
+    v = np.ascontiguousarray(velocity, dtype=np.float64).reshape(-1)
+    return _evaluator()(kernel, v, np.ascontiguousarray(p, dtype=np.float64))
 
 
 _S6 = math.sqrt(6.0)
@@ -148,6 +129,7 @@ def _solve3(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
 
 @njit(cache=True)
 def _radau_step(
+    law: Any,
     x: float,
     w: float,
     t: float,
@@ -172,8 +154,7 @@ def _radau_step(
 
     work (8x3) and jac (3x3) are scratch space, allocated once per advance() call.
     """
-    mass, damp, stiff, gamma = rig[0], rig[1], rig[2], rig[3]
-    normal = fp[11]
+    mass, damp, stiff, gamma, normal = rig[0], rig[1], rig[2], rig[3], rig[4]
     slope_vb = (vb1 - vb0) / dt
     vb, wst, g, gw, res, delta, zx, zw = (
         work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7]
@@ -187,7 +168,7 @@ def _radau_step(
     vb_now = vb0 + slope_vb * (t - t0)
     rel_now = vb_now - gamma * w
     stuck = abs(rel_now) < 1e-3 * abs(vb_now)
-    mu0, dmu0 = mu_and_slope(rel_now, fp)
+    mu0, dmu0 = law(rel_now, fp)
     if not math.isfinite(dmu0):
         dmu0 = 1e300
     f_w = (normal * mu0 - damp * w - stiff * x) / mass
@@ -199,7 +180,7 @@ def _radau_step(
     for _ in range(_NEWTON_MAXITER):
         for j in range(3):
             xj = x + h * (aa[j, 0] * wst[0] + aa[j, 1] * wst[1] + aa[j, 2] * wst[2])
-            mu, dmu = mu_and_slope(vb[j] - gamma * wst[j], fp)
+            mu, dmu = law(vb[j] - gamma * wst[j], fp)
             if not math.isfinite(dmu):
                 dmu = 1e300
             g[j] = (normal * mu - damp * wst[j] - stiff * xj) / mass
@@ -276,12 +257,12 @@ def _radau_step(
     return err <= 1.0, x_new, w_new, err
 
 
-@njit(cache=True)
-def _advance(
+def _advance_py(
     state: np.ndarray,
     band: np.ndarray,
     dt: float,
     rig: np.ndarray,
+    law: Any,
     fp: np.ndarray,
     rtol: float,
     atol_x: float,
@@ -312,7 +293,7 @@ def _advance(
             last = h >= remaining * (1.0 - 1e-12)
             step = remaining if last else h
             accepted, x_new, w_new, err = _radau_step(
-                x, w, t, step, t0, dt, vb_prev, vb_next, rig, fp, rtol, atol_x, atol_w, aa, a2, cc, ee,
+                law, x, w, t, step, t0, dt, vb_prev, vb_next, rig, fp, rtol, atol_x, atol_w, aa, a2, cc, ee,
                 work, jac,
             )
             if math.isfinite(err):
@@ -342,3 +323,38 @@ def _advance(
     state[0], state[1], state[2], state[3], state[4] = t, x, w, vb_prev, h
     state[5] = substeps
     return OK
+
+
+@functools.cache
+def _stepper() -> Any:
+    """The compiled stepper (compiled, or loaded from numba's cache, on first use)."""
+    f8 = types.float64
+    array = types.Array(f8, 1, "C")
+    matrix = types.Array(f8, 2, "C")
+    signature = types.int64(
+        array, array, f8, array, LAW_KERNEL, LAW_PARAMETERS, f8, f8, f8,
+        matrix, matrix, array, array, array, array,
+    )
+    return njit(signature, cache=True)(_advance_py)
+
+
+def advance(
+    state: np.ndarray,
+    band: np.ndarray,
+    dt: float,
+    rig: np.ndarray,
+    kernel: Any,
+    fp: np.ndarray,
+    rtol: float,
+    atol_x: float,
+    atol_w: float,
+    out_x: np.ndarray,
+    out_w: np.ndarray,
+) -> int:
+    """Advance over len(band) samples with the law `kernel` (p = fp); status OK or STEP_TOO_SMALL.
+
+    state = [t, x, ẋ, v_band, h, substeps] is updated in place; rig = [m, c, k, γ, N].
+    """
+    return int(
+        _stepper()(state, band, dt, rig, kernel, fp, rtol, atol_x, atol_w, _A, _A2, _C, _E, out_x, out_w)
+    )

@@ -7,8 +7,25 @@ stresses and moduli in Pa, viscosities in Pa·s, masses in kg, frequencies in Hz
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, fields, replace
-from typing import Any, Literal
+from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
+from typing import Any, ClassVar, Literal
+
+from .friction_laws import DEFAULT_LAW, law_named
+from .validation import ParameterError, _check_finite, _check_positive, _check_range
+
+__all__ = [
+    "CONTACT_AREA_CHOICES",
+    "CONTACT_AREA_CORRECTED",
+    "CONTACT_AREA_PRINTED",
+    "CONVENTIONS",
+    "Convention",
+    "FrictionParameters",
+    "ParameterError",
+    "RigParameters",
+    "_check_finite",
+    "_check_positive",
+    "_check_range",
+]
 
 Convention = Literal["physical", "paper"]
 CONVENTIONS: tuple[str, ...] = ("physical", "paper")
@@ -23,37 +40,14 @@ CONTACT_AREA_CHOICES: dict[str, float] = {
 }
 
 
-class ParameterError(ValueError):
-    """A parameter value outside what the model accepts; the message names value and valid range."""
-
-
-def _check_finite(name: str, value: Any) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name}={value!r} is not a number; expected a finite float") from None
-    if not math.isfinite(number):
-        raise ParameterError(f"{name}={value!r} is not finite; expected a finite float")
-    return number
-
-
-def _check_positive(name: str, value: Any) -> float:
-    number = _check_finite(name, value)
-    if number <= 0.0:
-        raise ParameterError(f"{name}={value!r} must be > 0")
-    return number
-
-
-def _check_range(name: str, value: Any, low: float, high: float) -> float:
-    number = _check_finite(name, value)
-    if not low <= number <= high:
-        raise ParameterError(f"{name}={value!r} is outside the valid range [{low}, {high}]")
-    return number
-
-
 @dataclass(frozen=True)
 class FrictionParameters:
-    """Junction-kinetics friction law of the confined interface (diamine in PAO, N = 1 mN)."""
+    """Junction-kinetics friction law of the confined interface (diamine in PAO, N = 1 mN).
+
+    The default law (core.junction); its fields are the compiled kernel's p in this order.
+    """
+
+    law: ClassVar[str] = "junction_kinetics"
 
     shear_modulus: float = 3.9e6  # G, Pa
     interface_thickness: float = 4.25e-9  # D, m
@@ -109,7 +103,9 @@ class RigParameters:
     natural_frequency: float = 10.0  # f0, Hz
     damping_ratio: float = 0.01  # ζ, dimensionless
     convention: str = "physical"  # 'physical' (v_band − ẋ) or 'paper' (v_band − ẋ/ω0)
-    friction: FrictionParameters = field(default_factory=FrictionParameters)
+    #: the friction law's parameter set (FrictionParameters = junction kinetics, or any registered
+    #: law's, see core.friction_laws); its normal_force is the rig's load N.
+    friction: Any = field(default_factory=FrictionParameters)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mass", _check_positive("mass", self.mass))
@@ -124,8 +120,11 @@ class RigParameters:
             raise ParameterError(
                 f"convention={self.convention!r} is not valid; expected one of {list(CONVENTIONS)}"
             )
-        if not isinstance(self.friction, FrictionParameters):
-            raise ParameterError("friction must be a FrictionParameters instance")
+        if not (is_dataclass(self.friction) and isinstance(getattr(type(self.friction), "law", None), str)):
+            raise ParameterError(
+                f"friction={self.friction!r} is not valid; expected the parameters of a friction law "
+                "(FrictionParameters or another core.friction_laws law's)"
+            )
 
     @property
     def angular_frequency(self) -> float:
@@ -151,9 +150,18 @@ class RigParameters:
         """v_rel = v_band − γ ẋ in m/s (scalars or arrays): the one home of the convention."""
         return band_velocity - self.velocity_factor * velocity
 
+    @property
+    def normal_force(self) -> float:
+        """N in N (held by the friction parameters)."""
+        return float(self.friction.normal_force)
+
     def to_dict(self) -> dict[str, Any]:
-        """Plain dictionary (YAML/JSON friendly), friction nested."""
-        return asdict(self)
+        """Plain dictionary (YAML/JSON friendly), friction nested; `law` named unless the default."""
+        data = asdict(self)
+        law = type(self.friction).law
+        if law != DEFAULT_LAW:
+            data["friction"] = {"law": law, **data["friction"]}
+        return data
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> RigParameters:
@@ -161,19 +169,35 @@ class RigParameters:
         data = dict(data)
         friction_data = dict(data.pop("friction", {}) or {})
         known_rig = {f.name for f in fields(cls)} - {"friction"}
-        known_friction = {f.name for f in fields(FrictionParameters)}
         unknown = set(data) - known_rig
         if unknown:
             raise ParameterError(
                 f"unknown rig parameter(s) {sorted(unknown)}; valid: {sorted(known_rig)}"
             )
-        area = friction_data.pop("contact_area", None)
-        unknown = set(friction_data) - known_friction
+        return cls(**data, friction=friction_from_dict(friction_data))
+
+
+def friction_from_dict(data: dict[str, Any]) -> Any:
+    """A friction-law parameter set from a 'friction' mapping ({law: name, field: value, ...}).
+
+    Without `law` (or law: junction_kinetics) the junction-kinetics FrictionParameters, whose
+    contact_area may also be 'corrected' or 'printed'. Unknown fields are an error naming the valid ones.
+    """
+    data = dict(data)
+    law = data.pop("law", DEFAULT_LAW)
+    if law == DEFAULT_LAW:
+        area = data.pop("contact_area", None)
+        known = [f.name for f in fields(FrictionParameters)]
+        unknown = set(data) - set(known)
         if unknown:
-            raise ParameterError(
-                f"unknown friction parameter(s) {sorted(unknown)}; valid: {sorted(known_friction)}"
-            )
-        friction = FrictionParameters(**friction_data)
-        if area is not None:
-            friction = friction.with_contact_area(area)
-        return cls(**data, friction=friction)
+            raise ParameterError(f"unknown friction parameter(s) {sorted(unknown)}; valid: {sorted(known)}")
+        friction = FrictionParameters(**data)
+        return friction if area is None else friction.with_contact_area(area)
+    kind = law_named(law).parameters
+    known = [f.name for f in fields(kind)]
+    unknown = set(data) - set(known)
+    if unknown:
+        raise ParameterError(
+            f"unknown {law} friction parameter(s) {sorted(unknown)}; valid: {sorted(known)}"
+        )
+    return kind(**data)

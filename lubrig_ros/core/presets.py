@@ -14,6 +14,7 @@ from typing import Any
 import yaml
 
 from .. import __version__
+from .friction_laws import DEFAULT_LAW
 from .params import ParameterError, RigParameters, _check_positive
 from .profiles import BandProfile, profile_from_dict, profile_to_dict
 
@@ -97,11 +98,26 @@ class RunConfig:
         return replace(self, rig=replace(self.rig, **rig_changes), **run_changes)
 
 
+def _replaces_whole(key: str, base: dict[str, Any], over: dict[str, Any]) -> bool:
+    """A 'band' section replaces whole; so does a 'friction' section naming another law."""
+    if key == "band":
+        return True
+    return key == "friction" and over.get("law", DEFAULT_LAW) != base.get("law", DEFAULT_LAW)
+
+
 def deep_merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
-    """Copy of base with over merged in, mapping by mapping; a 'band' section replaces whole."""
+    """Copy of base with over merged in, mapping by mapping.
+
+    A 'band' section replaces whole (one kind's fields mean nothing to another), and so does a
+    'friction' section whose `law` differs from the base's.
+    """
     merged = copy.deepcopy(base)
     for key, value in over.items():
-        if isinstance(value, dict) and isinstance(merged.get(key), dict) and key != "band":
+        if (
+            isinstance(value, dict)
+            and isinstance(merged.get(key), dict)
+            and not _replaces_whole(key, merged[key], value)
+        ):
             merged[key] = deep_merge(merged[key], value)
         else:
             merged[key] = copy.deepcopy(value)

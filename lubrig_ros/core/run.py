@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from .friction import stick_velocity
+from .friction import stick_velocity_or_none
 from .integrator import RigIntegrator, Trajectory, concatenate
 from .presets import RunConfig
 
@@ -69,12 +69,18 @@ def spectral_peaks(
 
 
 def summarize(trajectory: Trajectory, config: RunConfig) -> dict[str, Any]:
-    """Stationary measures over the second half of the run (the first half is transient)."""
+    """Stationary measures over the second half of the run (the first half is transient).
+
+    The stick threshold is the friction-peak velocity; for a law without a peak (with these
+    parameters) there is none, and stick_threshold_m_s and stick_fraction are None.
+    """
     half = trajectory.time >= trajectory.time[-1] / 2.0
     x = trajectory.displacement[half]
     mu = trajectory.friction_coefficient[half]
-    stick_threshold = stick_velocity(config.rig.friction)
-    stuck = np.abs(trajectory.relative_velocity[half]) < stick_threshold
+    stick_threshold = stick_velocity_or_none(config.rig.friction)
+    stick_fraction = None
+    if stick_threshold is not None:
+        stick_fraction = float((np.abs(trajectory.relative_velocity[half]) < stick_threshold).mean())
     peaks = spectral_peaks(x, config.sample_rate)
     return {
         "name": config.name,
@@ -88,7 +94,7 @@ def summarize(trajectory: Trajectory, config: RunConfig) -> dict[str, Any]:
         "mu_min": float(mu.min()),
         "mu_max": float(mu.max()),
         "stick_threshold_m_s": stick_threshold,
-        "stick_fraction": float(stuck.mean()),
+        "stick_fraction": stick_fraction,
         "dominant_frequencies_hz": [f for f, _ in peaks],
         "spectral_amplitudes": [a for _, a in peaks],
         "window": "second half of the run",

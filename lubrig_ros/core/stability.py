@@ -3,16 +3,20 @@
 Linearizing m ẍ + c ẋ + k x = N μ(v_band − γ ẋ) about x0 = N μ(v_band)/k gives, in hyper-time,
 x̃'' + (2ζ + ω0 γ N μ'(v_band)/k) x̃' + x̃ = 0 with γ = 1 (physical) or 1/ω0 (paper): the
 equilibrium is stable exactly when that effective damping is positive.
+
+The verdict needs only μ'(v_band) and so holds for every friction law; the zones need the law's
+peak (and minimum): for a law without them the zone is None (friction_zone: ParameterError).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from .friction import friction_coefficient, friction_minimum, friction_peak, friction_slope
+from .friction import friction_coefficient, friction_landmarks, friction_peak, friction_slope
 from .params import RigParameters
 
 ZONE_NAMES = {
@@ -27,7 +31,7 @@ class LinearStability:
     """Linear verdict at one band velocity."""
 
     band_velocity: float  # m/s
-    zone: int  # 1, 2 or 3
+    zone: int | None  # 1, 2 or 3; None when the friction law has no peak (zones undefined)
     friction_coefficient: float
     friction_slope: float  # dμ/dv, s/m
     equilibrium_displacement: float  # x0, m
@@ -58,11 +62,16 @@ def equilibrium_displacement(band_velocity: np.typing.ArrayLike, rig: RigParamet
 
 
 def friction_zone(band_velocity: np.typing.ArrayLike, rig: RigParameters) -> np.ndarray:
-    """Zone 1, 2 or 3 of |v_band| relative to the peak and minimum of μ (integer array)."""
+    """Zone 1, 2 or 3 of |v_band| relative to the peak and minimum of μ (integer array).
+
+    A law with a peak but no minimum has no zone 3; one without a peak has no zones
+    (ParameterError naming the law and its parameters).
+    """
     v = np.abs(np.asarray(band_velocity, dtype=float))
-    peak = friction_peak(rig.friction).velocity
-    minimum = friction_minimum(rig.friction).velocity
-    return np.where(v < peak, 1, np.where(v < minimum, 2, 3))
+    peak = friction_peak(rig.friction)  # ParameterError saying why when the law has none
+    minimum = friction_landmarks(rig.friction)[1]
+    upper = math.inf if minimum is None else minimum.velocity
+    return np.where(v < peak.velocity, 1, np.where(v < upper, 2, 3))
 
 
 def critical_damping_ratio(
@@ -80,9 +89,10 @@ def linear_stability(band_velocity: float, rig: RigParameters) -> LinearStabilit
     mu = float(friction_coefficient(v, rig.friction))
     slope = float(friction_slope(v, rig.friction))
     effective = float(_effective(rig.damping_ratio, rig, slope))
+    has_zones = friction_landmarks(rig.friction)[0] is not None
     return LinearStability(
         band_velocity=v,
-        zone=int(friction_zone(v, rig)),
+        zone=int(friction_zone(v, rig)) if has_zones else None,
         friction_coefficient=mu,
         friction_slope=slope,
         equilibrium_displacement=mu * rig.friction.normal_force / rig.stiffness,
