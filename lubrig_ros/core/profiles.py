@@ -1,25 +1,88 @@
-"""Band velocity profiles v_band(t) in m/s: constant, the study's regular cycle, sine, table (CSV)."""
+"""Band velocity profiles v_band(t) in m/s, registered by kind: constant, cycle, sine, table (CSV).
+
+Every kind is a small frozen dataclass decorated with :func:`register_profile`; it has a class
+attribute ``kind`` (its name in YAML ``band: {kind: ...}`` and in the belt_drive node's
+``profile.kind``), is callable as v_band(t), and says its ``fundamental_hz`` (None if not periodic)
+and the band velocities at which a steady linear verdict is taken (``verdict_velocities``). The
+node, the sweep and the CLI ask the registry (:func:`profile_from_dict`, :func:`profile_kinds`,
+:class:`ProfileParameters`) and never branch on a kind's name. A new kind is one class here or in
+its own module plus its tests (docs/extending.md).
+"""
 
 from __future__ import annotations
 
 import csv
 import math
-from dataclasses import asdict, dataclass, field, fields
+from collections.abc import Callable, Mapping
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
-from .params import ParameterError, _check_finite, _check_positive
+from .validation import ParameterError, _check_finite, _check_positive
 
 
+class BandProfile(Protocol):
+    """What every registered profile kind provides."""
+
+    kind: ClassVar[str]
+
+    @property
+    def fundamental_hz(self) -> float | None:
+        """Frequency of the periodic forcing in Hz, None if the profile is not periodic."""
+        ...
+
+    def __call__(self, time: np.typing.ArrayLike) -> np.ndarray:
+        """v_band(t) in m/s for t in s."""
+        ...
+
+    def verdict_velocities(self) -> tuple[float, ...]:
+        """Band velocities (m/s) at which a steady linear verdict judges this profile."""
+        ...
+
+
+_KINDS: dict[str, type[Any]] = {}
+_P = TypeVar("_P", bound=type)
+
+
+def register_profile(cls: _P) -> _P:
+    """Class decorator: register a profile dataclass under its class attribute `kind`."""
+    kind = getattr(cls, "kind", None)
+    if not isinstance(kind, str) or not kind:
+        raise ValueError(f"{cls.__name__} needs a class attribute kind (a non-empty string)")
+    if kind in _KINDS and _KINDS[kind] is not cls:
+        raise ValueError(f"band profile kind {kind!r} is already registered ({_KINDS[kind].__name__})")
+    _KINDS[kind] = cls
+    return cls
+
+
+def unregister_profile(kind: str) -> None:
+    """Remove a kind added by register_profile (for tests of extension kinds)."""
+    _KINDS.pop(kind, None)
+
+
+def profile_kinds() -> list[str]:
+    """Every registered kind, in registration order."""
+    return list(_KINDS)
+
+
+def profile_class(kind: Any) -> type[Any]:
+    """The class registered for `kind`; ParameterError naming the valid kinds otherwise."""
+    try:
+        return _KINDS[kind]
+    except (KeyError, TypeError):
+        raise ParameterError(f"band kind={kind!r} is not valid; expected one of {profile_kinds()}") from None
+
+
+@register_profile
 @dataclass(frozen=True)
 class ConstantBand:
     """Constant band velocity."""
 
     velocity: float = 1e-7
 
-    kind = "constant"
+    kind: ClassVar[str] = "constant"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "velocity", _check_finite("velocity", self.velocity))
@@ -33,7 +96,12 @@ class ConstantBand:
         """v_band(t) in m/s for t in s."""
         return np.full(np.shape(time), self.velocity, dtype=float)
 
+    def verdict_velocities(self) -> tuple[float, ...]:
+        """Its velocity, whatever its sign (0 has no sliding equilibrium: the verdict says so)."""
+        return (self.velocity,)
 
+
+@register_profile
 @dataclass(frozen=True)
 class RegularCycle:
     """The study's band cycle between V1 (zone 2) and V2 (zone 3), period T_ramp + T_c.
@@ -47,7 +115,7 @@ class RegularCycle:
     plateau_time: float = 0.01  # T_c (both plateaus together)
     ramp_time: float = 0.2  # T_ramp (both ramps together)
 
-    kind = "cycle"
+    kind: ClassVar[str] = "cycle"
 
     def __post_init__(self) -> None:
         low = _check_finite("low_velocity", self.low_velocity)
@@ -100,7 +168,12 @@ class RegularCycle:
             default=self.low_velocity,
         )
 
+    def verdict_velocities(self) -> tuple[float, ...]:
+        """Both plateaus, V1 and V2, those > 0 (the cycle is stable only if both are)."""
+        return tuple(v for v in (self.low_velocity, self.high_velocity) if v > 0.0)
 
+
+@register_profile
 @dataclass(frozen=True)
 class SinusoidalBand:
     """v_band = mean + amplitude · sin(2π f t + phase)."""
@@ -110,7 +183,7 @@ class SinusoidalBand:
     frequency: float = 1.0  # Hz
     phase: float = 0.0  # rad
 
-    kind = "sine"
+    kind: ClassVar[str] = "sine"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mean_velocity", _check_finite("mean_velocity", self.mean_velocity))
@@ -133,7 +206,12 @@ class SinusoidalBand:
             2.0 * math.pi * self.frequency * t + self.phase
         )
 
+    def verdict_velocities(self) -> tuple[float, ...]:
+        """The mean velocity if > 0."""
+        return (self.mean_velocity,) if self.mean_velocity > 0.0 else ()
 
+
+@register_profile
 @dataclass(frozen=True)
 class TableBand:
     """Piecewise-linear band velocity through (time, velocity) points; holds the end values."""
@@ -142,7 +220,9 @@ class TableBand:
     velocities: tuple[float, ...] = field(default=(1e-7, 1e-7))
     source: str | None = None  # CSV path it came from, for the record
 
-    kind = "table"
+    kind: ClassVar[str] = "table"
+    #: node parameters: a table is given to the belt_drive node by its CSV path
+    node_fields: ClassVar[dict[str, Any]] = {"path": ""}
 
     def __post_init__(self) -> None:
         times = np.asarray(self.times, dtype=float)
@@ -179,6 +259,37 @@ class TableBand:
         """v_band(t) in m/s for t in s."""
         return np.interp(np.asarray(time, dtype=float), self.times, self.velocities)
 
+    def verdict_velocities(self) -> tuple[float, ...]:
+        """The lowest table velocity > 0 (a profile starting from rest has 0 among them)."""
+        positive = [v for v in self.velocities if v > 0.0]
+        return (min(positive),) if positive else ()
+
+    @classmethod
+    def from_mapping(cls, data: dict[str, Any], base_dir: Path | None = None) -> TableBand:
+        """{path: CSV} (relative to base_dir) or {times: [...], velocities: [...], source: ...}."""
+        if "path" not in data:
+            return _from_fields(cls, data)
+        data = dict(data)
+        path = Path(data.pop("path"))
+        if base_dir is not None and not path.is_absolute():
+            path = base_dir / path
+        if data:
+            raise ParameterError(f"unknown table band parameter(s) {sorted(data)}; valid: ['path']")
+        return cls.from_csv(path)
+
+    @classmethod
+    def from_node_values(cls, values: dict[str, Any], initial: Any) -> TableBand:
+        """profile.path (a CSV); without one, the run configuration's table if it is one."""
+        if values.get("path"):
+            return cls.from_mapping({"path": values["path"]})
+        if isinstance(initial, cls):
+            return initial
+        raise ParameterError("profile.kind='table' needs profile.path (a CSV of time_s,band_velocity_m_s)")
+
+    def node_values(self) -> dict[str, Any]:
+        """profile.path: the CSV it came from ('' for an inline table)."""
+        return {"path": self.source or ""}
+
     @classmethod
     def from_csv(cls, path: str | Path) -> TableBand:
         """Read 'time_s, band_velocity_m_s' rows; a non-numeric first row is taken as header."""
@@ -208,42 +319,126 @@ class TableBand:
         return cls(times=tuple(times), velocities=tuple(velocities), source=str(path))
 
 
-BandProfile = ConstantBand | RegularCycle | SinusoidalBand | TableBand
-PROFILE_KINDS: dict[str, type] = {
-    "constant": ConstantBand,
-    "cycle": RegularCycle,
-    "sine": SinusoidalBand,
-    "table": TableBand,
-}
-
-
-def profile_from_dict(data: dict[str, Any], base_dir: Path | None = None) -> BandProfile:
-    """Build a profile from a mapping such as a YAML 'band' section ({kind: ..., ...})."""
-    data = dict(data)
-    kind = data.pop("kind", None)
-    if kind not in PROFILE_KINDS:
-        raise ParameterError(f"band kind={kind!r} is not valid; expected one of {list(PROFILE_KINDS)}")
-    if kind == "table" and "path" in data:
-        path = Path(data.pop("path"))
-        if base_dir is not None and not path.is_absolute():
-            path = base_dir / path
-        if data:
-            raise ParameterError(f"unknown table band parameter(s) {sorted(data)}; valid: ['path']")
-        return TableBand.from_csv(path)
-    cls = PROFILE_KINDS[kind]
+def _from_fields(cls: type[Any], data: Mapping[str, Any]) -> Any:
     valid = [f.name for f in fields(cls)]
     unknown = set(data) - set(valid)
     if unknown:
-        raise ParameterError(f"unknown {kind} band parameter(s) {sorted(unknown)}; valid: {valid}")
+        raise ParameterError(f"unknown {cls.kind} band parameter(s) {sorted(unknown)}; valid: {valid}")
     return cls(**data)
 
 
+def profile_from_dict(data: dict[str, Any], base_dir: Path | None = None) -> BandProfile:
+    """Build a profile from a mapping such as a YAML 'band' section ({kind: ..., ...}).
+
+    A kind may read its mapping itself (classmethod from_mapping(data, base_dir), as the table
+    does for a CSV path); otherwise the mapping holds its dataclass fields.
+    """
+    data = dict(data)
+    cls = profile_class(data.pop("kind", None))
+    reader: Callable[..., Any] | None = getattr(cls, "from_mapping", None)
+    if reader is not None:
+        return reader(data, base_dir=base_dir)  # type: ignore[no-any-return]
+    return _from_fields(cls, data)  # type: ignore[no-any-return]
+
+
 def profile_to_dict(profile: BandProfile) -> dict[str, Any]:
-    """Mapping that profile_from_dict turns back into an equal profile."""
-    data = asdict(profile)
-    if isinstance(profile, TableBand):
-        data["times"] = list(profile.times)
-        data["velocities"] = list(profile.velocities)
-        if data.get("source") is None:
-            data.pop("source", None)
+    """Mapping that profile_from_dict turns back into an equal profile (tuples as lists)."""
+    data = {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(profile).items()}  # type: ignore[call-overload]
+    if isinstance(profile, TableBand) and data.get("source") is None:
+        data.pop("source", None)
     return {"kind": profile.kind, **data}
+
+
+def _node_fields(cls: type[Any]) -> dict[str, Any]:
+    """A kind's belt_drive parameters and defaults: its dataclass fields, or its node_fields."""
+    declared = getattr(cls, "node_fields", None)
+    if declared is not None:
+        return dict(declared)
+    out: dict[str, Any] = {}
+    for f in fields(cls):
+        if f.default is MISSING:
+            raise ValueError(f"{cls.__name__}.{f.name} needs a default to be a node parameter")
+        out[f.name] = f.default
+    return out
+
+
+def _node_values(profile: Any) -> dict[str, Any]:
+    reader = getattr(profile, "node_values", None)
+    if reader is not None:
+        return dict(reader())
+    return {name: getattr(profile, name) for name in _node_fields(type(profile))}
+
+
+def _from_node_values(cls: type[Any], values: dict[str, Any], initial: Any) -> Any:
+    reader = getattr(cls, "from_node_values", None)
+    if reader is not None:
+        return reader(values, initial)
+    return _from_fields(cls, values)
+
+
+class ProfileParameters:
+    """The flat ``profile.<field>`` parameters of every registered kind, as belt_drive exposes them.
+
+    Parameter names are the kinds' field names (profile.velocity, profile.frequency, …), so a field
+    name used by two kinds is one parameter. Each kind keeps its own values, though: a field set
+    for one kind applies to that kind only, and switching kind restores the new kind's own values
+    (its last ones, else the run configuration's or its defaults) instead of carrying over another
+    kind's value of a shared field. ROS-free; the node calls ``completed`` before validation (to set
+    the new kind's fields along with the kind) and ``apply`` to validate and switch.
+    """
+
+    def __init__(self, initial: BandProfile) -> None:
+        self.initial = initial
+        self.kind: str = initial.kind
+        #: field name → kinds that have it, in registration order
+        self.owners: dict[str, tuple[str, ...]] = {}
+        self._values: dict[str, dict[str, Any]] = {}
+        for kind in profile_kinds():
+            defaults = _node_fields(profile_class(kind))
+            self._values[kind] = defaults
+            for name in defaults:
+                self.owners[name] = (*self.owners.get(name, ()), kind)
+        self._values[self.kind] = {**self._values[self.kind], **_node_values(initial)}
+        self.profile: BandProfile = initial
+
+    def values(self, kind: str | None = None) -> dict[str, Any]:
+        """The values of one kind's fields (default: the active kind)."""
+        return dict(self._values[kind or self.kind])
+
+    def flat(self) -> dict[str, Any]:
+        """One value per parameter name: the active kind's for its fields, else the first owner's."""
+        out = {name: self._values[kinds[0]][name] for name, kinds in self.owners.items()}
+        out.update(self._values[self.kind])
+        return out
+
+    def completed(self, updates: Mapping[str, Any]) -> dict[str, Any]:
+        """Updates plus, when they switch kind, the new kind's own values of fields not given."""
+        out = dict(updates)
+        kind = out.get("kind", self.kind)
+        if kind != self.kind and kind in self._values:
+            for name, value in self._values[kind].items():
+                out.setdefault(name, value)
+        return out
+
+    def apply(self, updates: Mapping[str, Any]) -> BandProfile:
+        """Validate updates (kind and/or fields) and switch to the profile they give.
+
+        A field of the (new) active kind goes to it; a field of other kinds only is kept for those
+        kinds. Raises ParameterError (nothing changed) for an invalid kind, field or value.
+        """
+        kind = updates.get("kind", self.kind)
+        cls = profile_class(kind)
+        staged = {k: dict(v) for k, v in self._values.items()}
+        for name, value in updates.items():
+            if name == "kind":
+                continue
+            if name not in self.owners:
+                raise ParameterError(
+                    f"profile.{name} is not a band profile parameter; valid: {sorted(self.owners)}"
+                )
+            targets = (kind,) if kind in self.owners[name] else self.owners[name]
+            for owner in targets:
+                staged[owner][name] = value
+        profile = _from_node_values(cls, staged[kind], self.initial)
+        self._values, self.kind, self.profile = staged, kind, profile
+        return profile

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import threading
 import time
-from dataclasses import fields
-from typing import Any
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
@@ -23,33 +21,9 @@ from std_msgs.msg import Float64
 from ..app.contract import BELT_DRIVE_PARAMETERS
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
-from ..core.profiles import PROFILE_KINDS, BandProfile, profile_from_dict, profile_to_dict
+from ..core.profiles import BandProfile, ProfileParameters, profile_kinds, profile_to_dict
 from . import common
 from .interfaces import create_publisher, create_subscription
-
-#: profile.* parameters, their kind(s) and default values (units: m/s, s, Hz, rad), taken from the
-#: core's profile classes; a table profile is given by the path of its CSV.
-PROFILE_FIELDS: dict[str, tuple[tuple[str, ...], Any]] = {
-    **{
-        f.name: ((kind,), f.default)
-        for kind in ("constant", "cycle", "sine")
-        for f in fields(PROFILE_KINDS[kind])
-    },
-    "path": (("table",), ""),
-}
-
-
-def profile_from_values(values: dict[str, Any], fallback: BandProfile) -> BandProfile:
-    """Build a profile from profile.* values (kind + its fields); table without path: fallback."""
-    kind = values.get("kind")
-    if kind == "table":
-        if values.get("path"):
-            return profile_from_dict({"kind": "table", "path": values["path"]})
-        if fallback.kind == "table":
-            return fallback
-        raise ParameterError("profile.kind='table' needs profile.path (a CSV of time_s,band_velocity_m_s)")
-    fields = {name: values[name] for name, (kinds, _) in PROFILE_FIELDS.items() if kind in kinds}
-    return profile_from_dict({"kind": kind, **fields})
 
 
 class BeltDrive(Node):
@@ -67,22 +41,28 @@ class BeltDrive(Node):
         self.flow_window, self.start_delay = values["flow_window"], values["start_delay"]
         self.wait_for_subscriber = values["wait_for_subscriber"]
         self.realtime_priority = values["realtime_priority"]
-        # profile.* defaults come from the selected configuration's band section.
-        band = profile_to_dict(config.band)
+        # profile.* parameters: every registered kind's fields (core.profiles.ProfileParameters),
+        # defaults from the selected configuration's band section.
+        self.profile_parameters = ProfileParameters(config.band)
         self.declare_parameter(
-            "profile.kind", band["kind"], common.descriptor("constant | cycle | sine | table")
+            "profile.kind", config.band.kind, common.descriptor(" | ".join(profile_kinds()))
         )
-        for name, (kinds, default) in PROFILE_FIELDS.items():
-            value = band.get(name, default) if band["kind"] in kinds else default
-            if name == "path":
-                value = str(band.get("source") or "")
+        declared = self.profile_parameters.flat()
+        for name, value in declared.items():
+            kinds = self.profile_parameters.owners[name]
             self.declare_parameter(
                 f"profile.{name}",
-                float(value) if name != "path" else value,
+                value if isinstance(value, str) else float(value),
                 common.descriptor(f"{'/'.join(kinds)} profile: {name}"),
             )
-        self.profile: BandProfile = profile_from_values(self._profile_values(), config.band)
-        self._config_band = config.band
+        # values given at start-up (parameter file, command line) apply as one update
+        given = {"kind": self.get_parameter("profile.kind").value}
+        for name, value in declared.items():
+            current = self.get_parameter(f"profile.{name}").value
+            if current != value:
+                given[name] = current
+        self.profile: BandProfile = self.profile_parameters.apply(given)
+        self.add_pre_set_parameters_callback(self._complete_profile_update)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self.publisher = create_publisher(self, ns, "band_velocity")
@@ -103,19 +83,29 @@ class BeltDrive(Node):
             f"belt_drive: mode={self.mode}, {self.sample_rate:g} Hz, profile {profile_to_dict(self.profile)}"
         )
 
-    def _profile_values(self, updates: dict[str, Any] | None = None) -> dict[str, Any]:
-        values = {"kind": self.get_parameter("profile.kind").value}
-        values.update({n: self.get_parameter(f"profile.{n}").value for n in PROFILE_FIELDS})
-        values.update(updates or {})
-        return values
+    def _complete_profile_update(self, params: list[Parameter]) -> list[Parameter]:
+        """A change of profile.kind also sets the new kind's own fields (no value of another kind)."""
+        updates = {p.name.removeprefix("profile."): p.value for p in params if p.name.startswith("profile.")}
+        if "kind" not in updates:
+            return params
+        extra = self.profile_parameters.completed(updates)
+        given = {p.name for p in params}
+        return params + [
+            Parameter(f"profile.{name}", value=value)
+            for name, value in extra.items()
+            if f"profile.{name}" not in given
+            and self.has_parameter(f"profile.{name}")
+            and self.get_parameter(f"profile.{name}").value != value
+        ]
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """Validate profile.* updates as a whole; swap the profile only when valid."""
         updates = {p.name.removeprefix("profile."): p.value for p in params if p.name.startswith("profile.")}
         if not updates:
             return SetParametersResult(successful=True)
+        declared = self.profile_parameters.flat()
         for name, value in updates.items():
-            if name == "kind" or name == "path":
+            if name == "kind" or isinstance(declared.get(name), str):
                 if not isinstance(value, str):
                     return SetParametersResult(
                         successful=False,
@@ -125,9 +115,8 @@ class BeltDrive(Node):
                 return SetParametersResult(
                     successful=False, reason=f"profile.{name}={value!r} is not valid; expected a number"
                 )
-        values = self._profile_values(updates)
         try:
-            profile = profile_from_values(values, self._config_band)
+            profile = self.profile_parameters.apply(updates)
         except (ParameterError, ValueError, TypeError) as exc:
             self.get_logger().warning(f"profile update rejected: {exc}")
             return SetParametersResult(successful=False, reason=str(exc))

@@ -87,21 +87,11 @@ def linear_columns(config: RunConfig) -> dict[str, Any]:
     > 0 (a profile starting from rest has 0 among them). A cycle, sine or table with no velocity
     > 0 has no sliding equilibrium to judge: the linear columns are null.
     """
-    band = config.band
-    if band.kind == "constant":
-        velocities = [band.velocity]
-    else:
-        if band.kind == "cycle":
-            candidates = [band.low_velocity, band.high_velocity]
-        elif band.kind == "sine":
-            candidates = [band.mean_velocity]
-        else:
-            candidates = [min((v for v in band.velocities if v > 0.0), default=0.0)]
-        velocities = [v for v in candidates if v > 0.0]
-        if not velocities:
-            return dict.fromkeys(
-                ("linear_velocity_m_s", "linear_zone", "linear_stable", "critical_damping_ratio")
-            )
+    velocities = list(config.band.verdict_velocities())  # each profile kind says which (core.profiles)
+    if not velocities:
+        return dict.fromkeys(
+            ("linear_velocity_m_s", "linear_zone", "linear_stable", "critical_damping_ratio")
+        )
     verdicts = [linear_stability(v, config.rig) for v in velocities]
     worst = max(verdicts, key=lambda s: (not s.stable, s.critical_damping_ratio))
     return {

@@ -28,8 +28,9 @@ SPEC_KEYS = ("name", "description", "base", "base_case", "design", "samples", "s
 DESIGNS = ("grid", "random", "lhs")
 GRID_KINDS = ("values", "linspace", "logspace")
 SAMPLED_KINDS = ("uniform", "loguniform")
-#: Paths that are not numbers or choices one can sweep (identity of the run, not physics).
-NOT_SWEEPABLE = ("name", "description", "band.kind", "band.source")
+#: Paths that are not numbers or choices one can sweep (identity of the run, not physics; a band
+#: kind's or friction law's fields mean nothing to another kind or law).
+NOT_SWEEPABLE = ("name", "description", "band.kind", "band.source", "rig.friction.law")
 MAX_POINTS = 1_000_000
 
 
