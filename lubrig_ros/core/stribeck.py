@@ -10,8 +10,9 @@
   if steep, slope; the junction law has an infinite one there and is handled the same way).
 
 dμ/dv = sech²(v/v_r)/v_r · S(|v|) + tanh(|v|/v_r) · S'(|v|) + μ_v with S the bracket above and
-S'(a) = −(μ_s − μ_c) δ (a/v_s)^δ exp(−(a/v_s)^δ) / a; even in v. For |v| ≪ v_s the second term is
-≈ δ (|v|/v_s)^δ (μ_c − μ_s)/v_r → 0, so the slope is continuous at 0 for every δ > 0.
+S'(a) = −(μ_s − μ_c) δ (a/v_s)^δ exp(−(a/v_s)^δ) / a; even in v. For |v| ≪ v_s, v_r the slope is
+μ_s/v_r + μ_v − (1 + δ)(μ_s − μ_c)(|v|/v_s)^δ / v_r: continuous at 0 for every δ > 0 (approached
+like |v|^δ).
 
 Defaults are chosen for this rig's range 1e-12 … 1e-5 m/s to resemble the junction law of the
 study (docs/model.md): μ_s = 0.16 and μ_c = 0.006 (the junction law's peak ≈ 0.161 and minimum
