@@ -2,30 +2,29 @@
 
 Friction laws reach the compiled code through one adapter (this module):
 
-* a law's scalar kernel ``(v, p) -> (μ, dμ/dv)`` is decorated with :func:`law_kernel`, which
-  compiles it for :data:`LAW_SIGNATURE` (v float64, p a contiguous float64 array) with its own
-  on-disk cache;
-* the stepper (:func:`advance`) and the vectorized evaluation (:func:`evaluate_law`) are compiled
-  ONCE for a first-class function argument of type :data:`LAW_KERNEL` and call the law through its
-  address. There is one compiled stepper for every law.
+* a law's scalar kernel ``(v, p) -> (μ, dμ/dv)`` is decorated with :func:`law_kernel` (compiled for
+  :data:`LAW_SIGNATURE`: v float64, p a contiguous float64 array);
+* :func:`advance` (the stepper) and :func:`evaluate_law` (vectorized μ, dμ/dv) take the kernel as
+  an argument and run a copy of the stepper specialized for it (:func:`_specialize`): the same
+  source, with the global ``_LAW`` bound to the kernel, so numba inlines the law as it did when the
+  junction law was the only one. Compiled once per law and cached on disk.
 
-Why this design (measured, see docs/extending.md): numba offers three ways to hand a function to
-a compiled one. (1) Passing the dispatcher itself (argument typed ``Dispatcher``) specializes the
-callee per law and inlines it, but such a signature never hits numba's cache: every process
-recompiled the stepper (≈ 4–6 s) and each run added a new cache file. (2) A factory building a
-stepper per law (closure) is cached by the factory's file, so a change in the law's file would
-keep running a stale compiled copy (the bug that once had every kernel in this one file). (3) A
-first-class function type (what this module does): the stepper is compiled and cached once; the
-law's kernel is compiled and cached by its own file, and the stepper only holds its address at
-call time. A change to a law's file therefore recompiles that law's kernel and nothing else, and
-no compiled code of one file ever embeds code of another (test/test_friction_laws.py checks it in
-fresh processes). The price is an indirect, not inlined, call to μ(v) — 3 to 4 per Newton
-iteration — which costs a few per cent of integration time (figures in docs/extending.md); the
-default law's results stay bit-identical (no fast-math: inlining does not change floating point).
+Staleness: numba keys a cached function on its own source file only, and a specialized stepper
+embeds its law's code. Its cache is therefore located by :class:`_LawLocator`, whose source stamp
+is the content hash of this file AND of the law kernel's file: editing either recompiles that
+law's stepper, and nothing else (test/test_friction_laws.py edits a law module between fresh
+processes). Helpers a kernel calls must live in the kernel's own file (they are inlined too and
+only that file is in the stamp), as core/junction.py does.
 
-Cache staleness inside one file still matters: helpers a kernel calls directly (numba inlines
-njit callees into the caller's cached code) must live in the kernel's own file, as
-core/junction.py does.
+Why this design (numba 0.68.1, measured; figures in docs/extending.md). (1) Passing the dispatcher
+as an argument (type ``Dispatcher``) inlines the law, but that signature never hits numba's cache
+(the type is the dispatcher object): every process recompiled the stepper and each run added a
+cache file. (2) A first-class function type (``FunctionType``, the law called through its address)
+caches well and can never be stale, but the indirect, non-inlined calls cost ≈ 15 % CPU time of
+the study cases. (3) A closure per law is cached under the factory's file only: stale after an
+edit of the law's file. (4) Chosen: a specialized copy per law, inlined, with a cache keyed on both
+files: the same speed and cache behaviour as before laws were pluggable, and the default law's
+runs stay bit-identical.
 
 Integrator: 3-stage Radau IIA (order 5, L-stable, stiffly accurate) with adaptive substeps and the
 embedded error estimate of Hairer & Wanner (as in scipy's Radau); full Newton on the three stage
@@ -35,20 +34,23 @@ velocities (displacements are linear in them) with a trust region in log|v_rel|.
 from __future__ import annotations
 
 import functools
+import hashlib
+import inspect
 import math
+import os
+import re
+import types as pytypes
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from numba import njit, types
-from numba.core.types import FunctionType
+from numba.core import caching as _caching
 
 #: Type of a law's p: a contiguous, writable float64 array.
 LAW_PARAMETERS = types.Array(types.float64, 1, "C")
 #: Signature every law kernel is compiled for: (v, p) -> (μ, dμ/dv).
 LAW_SIGNATURE = types.UniTuple(types.float64, 2)(types.float64, LAW_PARAMETERS)
-#: The first-class function type the stepper receives a law kernel as.
-LAW_KERNEL = FunctionType(LAW_SIGNATURE)
 
 
 def law_kernel(function: Callable[..., tuple[float, float]]) -> Any:
@@ -59,25 +61,18 @@ def law_kernel(function: Callable[..., tuple[float, float]]) -> Any:
     return njit(LAW_SIGNATURE, cache=True)(function)
 
 
-def _evaluate_law_py(law: Any, v: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+# Placeholders: each law's specialized copy of the functions below binds these globals to the law's
+# kernel and to its own Radau step (see _specialize).
+_LAW: Any = None
+_STEP: Any = None
+
+
+def _evaluate_law_py(v: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     mu = np.empty(v.size)
     dmu = np.empty(v.size)
     for i in range(v.size):
-        mu[i], dmu[i] = law(v[i], p)
+        mu[i], dmu[i] = _LAW(v[i], p)
     return mu, dmu
-
-
-@functools.cache
-def _evaluator() -> Any:
-    array = types.Array(types.float64, 1, "C")
-    signature = types.Tuple((array, array))(LAW_KERNEL, array, LAW_PARAMETERS)
-    return njit(signature, cache=True)(_evaluate_law_py)
-
-
-def evaluate_law(kernel: Any, velocity: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """μ and dμ/dv of a law kernel at every velocity of a 1-D float64 array (p: law.pack(params))."""
-    v = np.ascontiguousarray(velocity, dtype=np.float64).reshape(-1)
-    return _evaluator()(kernel, v, np.ascontiguousarray(p, dtype=np.float64))
 
 
 _S6 = math.sqrt(6.0)
@@ -127,9 +122,7 @@ def _solve3(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
         x[row] = acc / a[row, row]
 
 
-@njit(cache=True)
-def _radau_step(
-    law: Any,
+def _radau_step_py(
     x: float,
     w: float,
     t: float,
@@ -168,7 +161,7 @@ def _radau_step(
     vb_now = vb0 + slope_vb * (t - t0)
     rel_now = vb_now - gamma * w
     stuck = abs(rel_now) < 1e-3 * abs(vb_now)
-    mu0, dmu0 = law(rel_now, fp)
+    mu0, dmu0 = _LAW(rel_now, fp)
     if not math.isfinite(dmu0):
         dmu0 = 1e300
     f_w = (normal * mu0 - damp * w - stiff * x) / mass
@@ -180,7 +173,7 @@ def _radau_step(
     for _ in range(_NEWTON_MAXITER):
         for j in range(3):
             xj = x + h * (aa[j, 0] * wst[0] + aa[j, 1] * wst[1] + aa[j, 2] * wst[2])
-            mu, dmu = law(vb[j] - gamma * wst[j], fp)
+            mu, dmu = _LAW(vb[j] - gamma * wst[j], fp)
             if not math.isfinite(dmu):
                 dmu = 1e300
             g[j] = (normal * mu - damp * wst[j] - stiff * xj) / mass
@@ -262,7 +255,6 @@ def _advance_py(
     band: np.ndarray,
     dt: float,
     rig: np.ndarray,
-    law: Any,
     fp: np.ndarray,
     rtol: float,
     atol_x: float,
@@ -292,8 +284,8 @@ def _advance_py(
             remaining = t_end - t
             last = h >= remaining * (1.0 - 1e-12)
             step = remaining if last else h
-            accepted, x_new, w_new, err = _radau_step(
-                law, x, w, t, step, t0, dt, vb_prev, vb_next, rig, fp, rtol, atol_x, atol_w, aa, a2, cc, ee,
+            accepted, x_new, w_new, err = _STEP(
+                x, w, t, step, t0, dt, vb_prev, vb_next, rig, fp, rtol, atol_x, atol_w, aa, a2, cc, ee,
                 work, jac,
             )
             if math.isfinite(err):
@@ -325,17 +317,84 @@ def _advance_py(
     return OK
 
 
-@functools.cache
-def _stepper() -> Any:
-    """The compiled stepper (compiled, or loaded from numba's cache, on first use)."""
-    f8 = types.float64
-    array = types.Array(f8, 1, "C")
-    matrix = types.Array(f8, 2, "C")
-    signature = types.int64(
-        array, array, f8, array, LAW_KERNEL, LAW_PARAMETERS, f8, f8, f8,
-        matrix, matrix, array, array, array, array,
+class _LawLocator(_caching._CacheLocator):
+    """Cache locator of a law's specialized kernels: the normal place, keyed on both source files.
+
+    numba keys a cached function on its own file only; a law's stepper is compiled from this file
+    with the law's kernel inlined, so its stamp is the content hash of this file AND of the file
+    holding the law's kernel. Other functions are not this locator's (from_function returns None).
+    """
+
+    def __init__(self, base: Any, files: tuple[str, ...]) -> None:
+        self._base = base
+        self._files = files
+        self._py_file = base._py_file
+        self._lineno = base._lineno
+
+    def ensure_cache_path(self) -> None:
+        self._base.ensure_cache_path()
+
+    def get_cache_path(self) -> str:
+        return str(self._base.get_cache_path())
+
+    def get_disambiguator(self) -> str:
+        return str(self._base.get_disambiguator())
+
+    def get_source_stamp(self) -> Any:
+        stamps = [self._base.get_source_stamp()]
+        for path in self._files:
+            with open(path, "rb") as handle:
+                stamps.append(hashlib.sha256(handle.read()).digest())
+        return tuple(stamps)
+
+    @classmethod
+    def from_function(cls, py_func: Any, py_file: str) -> Any:
+        files = getattr(py_func, "_law_source_files", None)
+        if files is None:
+            return None
+        for base_class in _BASE_LOCATORS:
+            base = base_class.from_function(py_func, py_file)
+            if base is not None:
+                return cls(base, files)
+        return None
+
+
+_BASE_LOCATORS = [c for c in _caching.CacheImpl._locator_classes if c is not _LawLocator]
+if _LawLocator not in _caching.CacheImpl._locator_classes:
+    _caching.CacheImpl._locator_classes.insert(0, _LawLocator)
+
+
+def _clone(function: Any, tag: str, bound: dict[str, Any], files: tuple[str, ...]) -> Any:
+    """A copy of a module-level function with some globals bound, named for its law."""
+    namespace = dict(function.__globals__)
+    namespace.update(bound)
+    copy = pytypes.FunctionType(
+        function.__code__, namespace, function.__name__, function.__defaults__, function.__closure__
     )
-    return njit(signature, cache=True)(_advance_py)
+    copy.__qualname__ = f"{function.__qualname__}__{tag}"
+    copy.__module__ = function.__module__
+    copy._law_source_files = files  # type: ignore[attr-defined]
+    return copy
+
+
+@functools.cache
+def _specialize(kernel: Any) -> tuple[Any, Any]:
+    """(stepper, evaluator) compiled for one law kernel, inlined, cached by both files."""
+    py_func = kernel.py_func
+    files = (os.path.abspath(inspect.getfile(py_func)),)
+    tag = re.sub(r"\W", "_", f"{py_func.__module__}.{py_func.__qualname__}")
+    step = njit(cache=True)(_clone(_radau_step_py, tag, {"_LAW": kernel}, files))
+    stepper = njit(cache=True)(_clone(_advance_py, tag, {"_LAW": kernel, "_STEP": step}, files))
+    evaluator = njit(cache=True)(_clone(_evaluate_law_py, tag, {"_LAW": kernel}, files))
+    return stepper, evaluator
+
+
+def evaluate_law(kernel: Any, velocity: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """μ and dμ/dv of a law kernel at every velocity of a 1-D float64 array (p: law.pack(params))."""
+    v = np.ascontiguousarray(velocity, dtype=np.float64).reshape(-1)
+    evaluator = _specialize(kernel)[1]
+    result: tuple[np.ndarray, np.ndarray] = evaluator(v, np.ascontiguousarray(p, dtype=np.float64))
+    return result
 
 
 def advance(
@@ -356,5 +415,7 @@ def advance(
     state = [t, x, ẋ, v_band, h, substeps] is updated in place; rig = [m, c, k, γ, N].
     """
     return int(
-        _stepper()(state, band, dt, rig, kernel, fp, rtol, atol_x, atol_w, _A, _A2, _C, _E, out_x, out_w)
+        _specialize(kernel)[0](
+            state, band, dt, rig, fp, rtol, atol_x, atol_w, _A, _A2, _C, _E, out_x, out_w
+        )
     )

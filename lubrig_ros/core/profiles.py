@@ -12,6 +12,7 @@ its own module plus its tests (docs/extending.md).
 from __future__ import annotations
 
 import csv
+import importlib
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import MISSING, asdict, dataclass, field, fields
@@ -45,6 +46,15 @@ class BandProfile(Protocol):
 _KINDS: dict[str, type[Any]] = {}
 _P = TypeVar("_P", bound=type)
 
+#: Modules holding further kinds (each registers its class with @register_profile), imported on
+#: the first registry lookup. A new kind in a module of its own is listed here (its registration).
+PROFILE_MODULES: tuple[str, ...] = ()
+
+
+def _load_modules() -> None:
+    for module in PROFILE_MODULES:
+        importlib.import_module(module)
+
 
 def register_profile(cls: _P) -> _P:
     """Class decorator: register a profile dataclass under its class attribute `kind`."""
@@ -64,11 +74,13 @@ def unregister_profile(kind: str) -> None:
 
 def profile_kinds() -> list[str]:
     """Every registered kind, in registration order."""
+    _load_modules()
     return list(_KINDS)
 
 
 def profile_class(kind: Any) -> type[Any]:
     """The class registered for `kind`; ParameterError naming the valid kinds otherwise."""
+    _load_modules()
     try:
         return _KINDS[kind]
     except (KeyError, TypeError):
