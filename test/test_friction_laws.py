@@ -265,8 +265,8 @@ from lubrig_ros.core.integrator import RigIntegrator
 from lubrig_ros.core.params import RigParameters
 out = RigIntegrator(RigParameters(friction=lawmod.LinearParameters()), 1e-7).advance([1e-7] * 5)
 RigIntegrator(RigParameters(), 1e-7).advance([1e-7] * 5)  # the default law, same process
-law_stepper = kernels._specialize(lawmod.linear_kernel)[0]
-default_stepper = kernels._specialize(junction.mu_and_slope)[0]
+law_stepper = kernels.specialize(lawmod.linear_kernel)[0]
+default_stepper = kernels.specialize(junction.mu_and_slope)[0]
 print(json.dumps({
     "mu": float(out.friction_coefficient[-1]),
     "x": float(out.displacement[-1]),

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from .friction_laws import law_for
-from .kernels import OK, advance, evaluate_law
+from .kernels import _A, _A2, _C, _E, OK, specialize
 from .params import RigParameters
 
 
@@ -77,7 +77,8 @@ class RigIntegrator:
     _state: np.ndarray = field(init=False, repr=False)
     _rig_array: np.ndarray = field(init=False, repr=False)
     _fp: np.ndarray = field(init=False, repr=False)
-    _kernel: Any = field(init=False, repr=False)
+    _stepper: Any = field(init=False, repr=False)
+    _evaluator: Any = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         for name in ("initial_band_velocity", "sample_rate", "rtol", "initial_perturbation"):
@@ -99,7 +100,7 @@ class RigIntegrator:
             ]
         )
         law = law_for(self.rig.friction)
-        self._kernel = law.kernel
+        self._stepper, self._evaluator = specialize(law.kernel)  # compiled for this law, bound once
         self._fp = np.ascontiguousarray(law.pack(self.rig.friction), dtype=np.float64)
         self.reset()
 
@@ -111,7 +112,7 @@ class RigIntegrator:
     @property
     def equilibrium_displacement(self) -> float:
         """x0 for the initial band velocity, m."""
-        mu = float(evaluate_law(self._kernel, np.array([self.initial_band_velocity]), self._fp)[0][0])
+        mu = float(self._evaluator(np.array([self.initial_band_velocity]), self._fp)[0][0])
         return mu * self.rig.friction.normal_force / self.rig.stiffness
 
     def reset(self, band_velocity: float | None = None, time: float = 0.0) -> None:
@@ -163,9 +164,9 @@ class RigIntegrator:
         out_w = np.empty(band.size)
         t_start = self._state[0]
         atol_x, atol_w = self._scales
-        status = advance(
-            self._state, band, self.dt, self._rig_array, self._kernel, self._fp, self.rtol, atol_x, atol_w,
-            out_x, out_w,
+        status = self._stepper(
+            self._state, band, self.dt, self._rig_array, self._fp, self.rtol, atol_x, atol_w,
+            _A, _A2, _C, _E, out_x, out_w,
         )
         if status != OK:
             raise IntegrationError(
@@ -179,7 +180,7 @@ class RigIntegrator:
         self, time: np.ndarray, x: np.ndarray, w: np.ndarray, band: np.ndarray
     ) -> Trajectory:
         relative = self.rig.relative_velocity(band, w)
-        mu = evaluate_law(self._kernel, relative, self._fp)[0]  # params already packed
+        mu = self._evaluator(np.ascontiguousarray(relative), self._fp)[0]  # params already packed
         return Trajectory(
             time=time,
             displacement=x,

@@ -5,7 +5,7 @@ Friction laws reach the compiled code through one adapter (this module):
 * a law's scalar kernel ``(v, p) -> (μ, dμ/dv)`` is decorated with :func:`law_kernel` (compiled for
   :data:`LAW_SIGNATURE`: v float64, p a contiguous float64 array);
 * :func:`advance` (the stepper) and :func:`evaluate_law` (vectorized μ, dμ/dv) take the kernel as
-  an argument and run a copy of the stepper specialized for it (:func:`_specialize`): the same
+  an argument and run a copy of the stepper specialized for it (:func:`specialize`): the same
   source, with the global ``_LAW`` bound to the kernel, so numba inlines the law as it did when the
   junction law was the only one. Compiled once per law and cached on disk.
 
@@ -62,7 +62,7 @@ def law_kernel(function: Callable[..., tuple[float, float]]) -> Any:
 
 
 # Placeholders: each law's specialized copy of the functions below binds these globals to the law's
-# kernel and to its own Radau step (see _specialize).
+# kernel and to its own Radau step (see specialize).
 _LAW: Any = None
 _STEP: Any = None
 
@@ -378,8 +378,13 @@ def _clone(function: Any, tag: str, bound: dict[str, Any], files: tuple[str, ...
 
 
 @functools.cache
-def _specialize(kernel: Any) -> tuple[Any, Any]:
-    """(stepper, evaluator) compiled for one law kernel, inlined, cached by both files."""
+def specialize(kernel: Any) -> tuple[Any, Any]:
+    """(stepper, evaluator) compiled for one law kernel, inlined, cached by both files.
+
+    stepper(state, band, dt, rig, fp, rtol, atol_x, atol_w, A, A2, C, E, out_x, out_w) -> status
+    (see advance); evaluator(v, p) -> (μ, dμ/dv) for contiguous float64 arrays. The integrator
+    binds both once (a per-sample call then costs what it did with one built-in law).
+    """
     py_func = kernel.py_func
     files = (os.path.abspath(inspect.getfile(py_func)),)
     tag = re.sub(r"\W", "_", f"{py_func.__module__}.{py_func.__qualname__}")
@@ -392,7 +397,7 @@ def _specialize(kernel: Any) -> tuple[Any, Any]:
 def evaluate_law(kernel: Any, velocity: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """μ and dμ/dv of a law kernel at every velocity of a 1-D float64 array (p: law.pack(params))."""
     v = np.ascontiguousarray(velocity, dtype=np.float64).reshape(-1)
-    evaluator = _specialize(kernel)[1]
+    evaluator = specialize(kernel)[1]
     result: tuple[np.ndarray, np.ndarray] = evaluator(v, np.ascontiguousarray(p, dtype=np.float64))
     return result
 
@@ -415,7 +420,7 @@ def advance(
     state = [t, x, ẋ, v_band, h, substeps] is updated in place; rig = [m, c, k, γ, N].
     """
     return int(
-        _specialize(kernel)[0](
+        specialize(kernel)[0](
             state, band, dt, rig, fp, rtol, atol_x, atol_w, _A, _A2, _C, _E, out_x, out_w
         )
     )
