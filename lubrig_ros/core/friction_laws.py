@@ -64,9 +64,20 @@ class LawParameters(Protocol):
 class FrictionLaw(Protocol):
     """A friction law: μ(v) and dμ/dv, its compiled kernel and its optional landmarks."""
 
-    name: str
-    parameters: type[Any]
-    kernel: Any  # numba dispatcher (v, p) -> (mu, dmu), see core.kernels.law_kernel
+    @property
+    def name(self) -> str:
+        """Registry name (YAML `law:`)."""
+        ...
+
+    @property
+    def parameters(self) -> type[Any]:
+        """The parameter dataclass."""
+        ...
+
+    @property
+    def kernel(self) -> Any:
+        """The numba dispatcher (v, p) -> (μ, dμ/dv), compiled with core.kernels.law_kernel."""
+        ...
 
     def pack(self, params: Any) -> np.ndarray:
         """Parameters as the float64 array the kernel receives as p."""

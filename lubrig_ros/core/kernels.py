@@ -359,7 +359,7 @@ class _LawLocator(_caching._CacheLocator):
         return None
 
 
-_BASE_LOCATORS = [c for c in _caching.CacheImpl._locator_classes if c is not _LawLocator]
+_BASE_LOCATORS: list[Any] = [c for c in _caching.CacheImpl._locator_classes if c is not _LawLocator]
 if _LawLocator not in _caching.CacheImpl._locator_classes:
     _caching.CacheImpl._locator_classes.insert(0, _LawLocator)
 
