@@ -192,7 +192,7 @@ class AnalysisSession:
     def _analyse(self, out: AnalysisOutput) -> None:
         if self.band:  # a band at rest has no sliding equilibrium, hence no zone or ζ_crit
             verdict = linear_stability(abs(self.band), self.config.rig)
-            out.linear_zone = int(verdict.zone)
+            out.linear_zone = None if verdict.zone is None else int(verdict.zone)  # None: law without a peak
             if math.isfinite(verdict.critical_damping_ratio):
                 out.critical_damping_ratio = float(verdict.critical_damping_ratio)
         if not self.x:

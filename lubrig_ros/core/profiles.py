@@ -349,8 +349,8 @@ def profile_from_dict(data: dict[str, Any], base_dir: Path | None = None) -> Ban
     cls = profile_class(data.pop("kind", None))
     reader: Callable[..., Any] | None = getattr(cls, "from_mapping", None)
     if reader is not None:
-        return reader(data, base_dir=base_dir)  # type: ignore[no-any-return]
-    return _from_fields(cls, data)  # type: ignore[no-any-return]
+        return reader(data, base_dir=base_dir)
+    return _from_fields(cls, data)
 
 
 def profile_to_dict(profile: BandProfile) -> dict[str, Any]:
