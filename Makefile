@@ -12,7 +12,30 @@ $(STAMP): requirements.txt setup.py
 	$(PY) -m pip install -q --no-deps -e .
 	touch $(STAMP)
 
-setup: $(STAMP)
+# lubrig_interfaces (ROS 2 interface package, ament_cmake + rosidl): configured, built and installed
+# into the venv prefix with the machine's cmake and gcc, from the generator wheels in requirements.txt
+# (docs/interfaces.md). Rebuilt when a .msg, its CMakeLists.txt or package.xml changes, or when the
+# venv is (re)installed; the files of the previous install are removed first (install_manifest.txt).
+IFACE_SRC := lubrig_interfaces
+IFACE_BUILD := build/lubrig_interfaces
+IFACE_STAMP := $(VENV)/.lubrig_interfaces
+IFACE_FILES := $(IFACE_SRC)/CMakeLists.txt $(IFACE_SRC)/package.xml $(wildcard $(IFACE_SRC)/msg/*.msg)
+VENV_ABS = $(abspath $(VENV))
+JOBS ?= $(shell nproc 2>/dev/null || echo 2)
+
+$(IFACE_STAMP): $(STAMP) $(IFACE_FILES)
+	@if [ -f $(IFACE_BUILD)/install_manifest.txt ]; then xargs rm -f < $(IFACE_BUILD)/install_manifest.txt; fi
+	rm -rf $(IFACE_BUILD)
+	CMAKE_PREFIX_PATH=$(VENV_ABS) cmake -S $(IFACE_SRC) -B $(IFACE_BUILD) --log-level=WARNING \
+		-DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF \
+		-DCMAKE_INSTALL_PREFIX=$(VENV_ABS) -DPython3_EXECUTABLE=$(VENV_ABS)/bin/python
+	cmake --build $(IFACE_BUILD) -j $(JOBS) -- --no-print-directory > $(IFACE_BUILD)/build.log 2>&1 \
+		|| { tail -40 $(IFACE_BUILD)/build.log; exit 1; }
+	cmake --install $(IFACE_BUILD) > $(IFACE_BUILD)/install.log
+	$(PY) -c "import lubrig_interfaces.msg"
+	touch $@
+
+setup: $(STAMP) $(IFACE_STAMP)
 
 # The main job: the node suite (belt_drive, plant, analysis, recorder) on study case 1 in simulated
 # time, recorded to runs/latest/bag, then the report; the last line printed is the report's path.
