@@ -188,7 +188,7 @@ class Transient:
 
     @property
     def overshoot(self) -> float:
-        """peak / stationary (> 1: the transient overshoots the stationary amplitude)."""
+        """Peak / stationary (> 1: the transient overshoots the stationary amplitude)."""
         return self.peak / self.stationary if self.stationary > 0 else math.inf
 
 
@@ -198,8 +198,8 @@ def transient(
     """Windowed (e.g. per band period) peak-to-peak statistics of a response (see Transient)."""
     t, _ = _arrays(time, signal)
     centres, ptp = windowed_peak_to_peak(time, signal, window)
-    if centres.size < 8:
-        raise ValueError(f"the record holds {centres.size} windows of {window:g} s; need at least 8")
+    if centres.size < 4:
+        raise ValueError(f"the record holds {centres.size} windows of {window:g} s; need at least 4")
     duration = t[-1] - t[0]
     q3 = (centres >= t[0] + 0.5 * duration) & (centres < t[0] + 0.75 * duration)
     q4 = centres >= t[0] + 0.75 * duration
@@ -208,8 +208,10 @@ def transient(
     early = centres <= t[0] + transient_end
     k = int(np.argmax(np.where(early, ptp, -np.inf)))
     outside = np.nonzero((ptp > 2.0 * stationary) | (ptp < 0.5 * stationary))[0]
-    settling = float(centres[outside[-1] + 1]) if outside.size and outside[-1] + 1 < centres.size else (
-        math.inf if outside.size else float(centres[0])
+    settling = (
+        float(centres[outside[-1] + 1])
+        if outside.size and outside[-1] + 1 < centres.size
+        else (math.inf if outside.size else float(centres[0]))
     )
     return Transient(
         first=float(ptp[0]),
