@@ -46,7 +46,7 @@ def test_named_conventions_and_explicit_gamma() -> None:
 
 @pytest.mark.parametrize("bad", [0.0, -1.0, math.nan, math.inf, "ohm", True])
 def test_bad_coupling_names_value_and_choices(bad: object) -> None:
-    with pytest.raises(ParameterError, match="velocity_coupling=.*physical.*number > 0"):
+    with pytest.raises(ParameterError, match=r"velocity_coupling=.*physical.*number > 0"):
         RigParameters(velocity_coupling=bad)  # type: ignore[arg-type]
 
 

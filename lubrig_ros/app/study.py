@@ -242,7 +242,8 @@ def _case1_overshoot(metrics: Metrics, _: RigParameters) -> tuple[bool, str]:
     ok = 0.5 <= m["overshoot_time"] <= 1.5 and (m["overshoot"] or 0) > 1.05
     return (
         ok,
-        f"largest band-period p-p before 5 s at {m['overshoot_time']:.2f} s, ×{_g(m['overshoot'])} stationary",
+        f"largest band-period p-p before 5 s at {m['overshoot_time']:.2f} s, "
+        f"×{_g(m['overshoot'])} stationary",
     )
 
 

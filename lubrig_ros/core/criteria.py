@@ -36,7 +36,7 @@ def windowed_peak_to_peak(
         raise ValueError(f"window={window!r} must be a finite duration > 0 s")
     lo = t[0] if start is None else max(float(start), t[0])
     hi = t[-1] if stop is None else min(float(stop), t[-1])
-    count = int(math.floor((hi - lo) / window + 1e-9))
+    count = math.floor((hi - lo) / window + 1e-9)
     centres, ptp = [], []
     for k in range(count):
         a, b = lo + k * window, lo + (k + 1) * window
@@ -135,10 +135,10 @@ def component_amplitude(
         raise ValueError(f"frequency={frequency!r} must be a finite frequency > 0 Hz")
     hop = window / 4.0 if hop is None else hop
     dt = float(np.median(np.diff(t)))
-    n = int(round(window / dt))
+    n = round(window / dt)
     if n < 8 or n > t.size:
         raise ValueError(f"window={window!r} s holds {n} samples; need 8 … {t.size}")
-    step = max(1, int(round(hop / dt)))
+    step = max(1, round(hop / dt))
     w = np.hanning(n)
     phase = np.exp(-2j * np.pi * frequency * t)
     centres, amplitude = [], []

@@ -47,7 +47,8 @@ MECHANISMS: dict[str, str] = {
     "C3a": "growth on the V1 = 1e-7 m/s plateau needs V1 linearly unstable at ζ = 0.01: "
     "ζ_crit(1e-7) = {zc_v1:.3g} · s > 0.01, i.e. s > {s_v1:.3g} — incompatible with the 3e-8 edge "
     "(S2, S3), which needs s ≈ {s_edge:.3g}.",
-    "C6b": "as C3a: the vibration can grow on the V1 orbit only when V1 is linearly unstable (s > {s_v1:.3g}).",
+    "C6b": "as C3a: the vibration can grow on the V1 orbit only when V1 is linearly unstable "
+    "(s > {s_v1:.3g}).",
     "C7c": "case 7 (band at f0) is a forced resonance whose amplitude, relative to case 5, falls as "
     "the friction's negative slope adds coupling: 15 × case 5 for s → 0, eight times only for s "
     "in the band shown in the scan.",
@@ -299,7 +300,8 @@ def comparison_markdown(
         missed = ", ".join(v.key for v in verdicts if not v.agree) or "—"
         bold = "**" if name == preset else ""
         lines.append(
-            f"| {bold}{name}{bold} | {gamma:.4g} | {marks[name]:.4g} | {bold}{_score(verdicts)} of {total}{bold} | {missed} |"
+            f"| {bold}{name}{bold} | {gamma:.4g} | {marks[name]:.4g} | "
+            f"{bold}{_score(verdicts)} of {total}{bold} | {missed} |"
         )
     if scan_cards:
         best = max(_score(v) for v in scan_cards.values())
@@ -347,7 +349,8 @@ def comparison_markdown(
         ]
         for statement in STATEMENTS:
             lines.append(
-                f"| {statement.key} | {_cell(statement.study)} | {agreement_intervals(scan_cards, statement.key)} |"
+                f"| {statement.key} | {_cell(statement.study)} | "
+                f"{agreement_intervals(scan_cards, statement.key)} |"
             )
     lines += [
         "",
