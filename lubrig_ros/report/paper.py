@@ -55,7 +55,12 @@ MECHANISMS: dict[str, str] = {
     "C8a": "case 8 drives the band at 2 f0; a 10 Hz stick-slip response needs the forced 20 Hz orbit "
     "to lose stability by period doubling (the 10 Hz growth rate in the scan crosses 0), which "
     "happens only above s ≈ {s_pd:.3g}.",
-    "C8b": "as C8a: the 10 Hz subharmonic exists only above the period-doubling threshold s ≈ {s_pd:.3g}.",
+    "C8b": "10 Hz is the second-strongest peak from s ≈ 0.045, where the subharmonic near the "
+    "threshold decays slowly (critical slowing down), and the strongest once the 20 Hz orbit "
+    "period-doubles (s ≈ {s_pd:.3g}); above s ≈ 0.115 case 8 falls into full stick-slip at 4–8 Hz.",
+    "C10b": "the 10 Hz transient decays faster as s grows (the V2 plateau in zone 3 adds damping "
+    "∝ s): below 10 % of its early level after less than 2.5 s for s ≳ 0.06; in the physical "
+    "reading's stick-slip it never disappears.",
     "C8c": "μ up to 0.16 needs v_rel near the friction peak (4e-12 m/s) without reversing; in the "
     "scan case 8 either stays in zone 2–3 (μ ≤ {c8_mu_pd:.3g} at the period-doubled orbit) or "
     "falls into full stick-slip where v_rel reverses and μ goes negative (min {c8_mu_full:.3g}).",
@@ -63,12 +68,12 @@ MECHANISMS: dict[str, str] = {
     "rate ζ ω0 = 0.63 /s, so the band-period amplitude takes about 4 s, not under 3 s, to settle.",
     "C9b": "the 10 Hz transient decays at about ζ ω0 = 0.63 /s (falls to 10 % in about 4 s); "
     "'about 10 s' would need a decay 2.5 × slower.",
-    "C9c": "case 9's band cycle (T_c = 0.01 s, T_ramp = 0.02 s) is nearly triangular, so the forcing "
-    "μ(v_band(t)) itself carries a strong 66.7 Hz harmonic (about 40 % of the 33.3 Hz amplitude), "
-    "at every s where the response follows the band.",
-    "C10c": "case 10's response is dominated by the 33.3 Hz forcing; its 2nd harmonic stays below the "
-    "two-peak criterion at small s (the study reports the harmonic content of 9 and 10 the other "
-    "way round).",
+    "C9c": "case 9's band (1e-7 ↔ 2e-7 m/s) crosses the minimum of μ (1.35e-7 m/s) on every ramp, so "
+    "the forcing μ(v_band(t)) dips and rises twice per band period: a strong 66.7 Hz harmonic (about "
+    "40 % of the 33.3 Hz amplitude) at every s where the response follows the band.",
+    "C10c": "case 10's band (1e-7 ↔ 1e-6 m/s) spends most of each ramp in zone 3 where μ rises "
+    "monotonically, so μ(v_band(t)) is close to one harmonic: the 66.7 Hz peak stays below 1 % of "
+    "the 33.3 Hz one. The study reports the harmonic content of cases 9 and 10 the other way round.",
     "M1": "with larger s the oscillation moves v_rel below V1 on the low plateau, so μ exceeds 6.6e-3.",
     "M3": "with larger s the mass velocity γ ẋ becomes comparable to the band's variation (case 7 at "
     "resonance first), so μ(v_band) no longer explains μ.",
@@ -81,6 +86,13 @@ MECHANISMS: dict[str, str] = {
     "C1b": "in stick-slip the transient is a slow build-up of sticking phases, not an overshoot near 1 s.",
     "C1c": "in stick-slip the response is set by the stick-slip period, not by the band harmonics.",
 }
+
+
+#: Why a statement differs only in the physical reading (s = 1), unless MECHANISMS says more.
+STICKSLIP_MECHANISM = (
+    "at s = 1 the case falls into large stick-slip (x p-p about 7e-7 m, μ from −0.11 to 0.161, "
+    "stick fraction above 0.9), which replaces the band-driven response the statement describes."
+)
 
 
 def readings(rig: RigParameters | None = None) -> dict[str, float]:
@@ -363,7 +375,8 @@ def comparison_markdown(
         missing = [name for name in cards if not cards[name][i].agree]
         if not missing:
             continue
-        text = MECHANISMS.get(statement.key, "see the measured values below").format(**numbers)
+        fallback = STICKSLIP_MECHANISM if missing == ["physical"] else "see the measured values below"
+        text = MECHANISMS.get(statement.key, fallback).format(**numbers)
         lines.append(f"| {statement.key} | {', '.join(missing)} | {_cell(text)} |")
     lines += [
         "",
