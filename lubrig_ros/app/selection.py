@@ -2,9 +2,9 @@
 
 A run is selected by ONE source — a study case (1..10), a configuration file, or the built-in
 default (config/rig.yaml) — and then optionally overridden: the band profile, the contact area,
-rig fields (convention, velocity coupling γ, damping ratio, mass, natural frequency) and simulation fields (duration,
-sample rate, rtol). Overrides left at None keep the selected configuration's value, so the
-defaults live in one place: the configuration files under config/.
+rig fields (convention, velocity coupling γ, damping ratio, mass, natural frequency) and
+simulation fields (duration, sample rate, rtol). Overrides left at None keep the selected
+configuration's value, so the defaults live in one place: the configuration files under config/.
 
 Used by `lubrig simulate`, `lubrig rig`, `lubrig friction`, `lubrig stability`, the nodes
 (`case` / `config_file` parameters) and sweep specs (`base_case`).

@@ -206,9 +206,9 @@ def _run_reading(
     with `wavelet`) and the case figures are copied there; otherwise only config.yaml and
     summary.json are written (the page quotes their numbers).
     """
-    from ..cli.analyze import analyze_run
-    from ..cli.common import write_json
-    from ..cli.simulate import write_run
+    from ..app.rundir import write_json, write_run
+    from ..cli.analyze import analyze_run  # until the wavelet policy's home app/analysis.py lands
+    from ..figures.timeseries import write_run_figures
 
     started = time.perf_counter()
     metrics: Metrics = {}
@@ -220,6 +220,7 @@ def _run_reading(
         directory = out / name
         if figures is not None:
             write_run(directory, config, trajectory, summary)
+            write_run_figures(directory, trajectory, config.name, config.rig.coupling_name)
         else:
             directory.mkdir(parents=True, exist_ok=True)
             (directory / "config.yaml").write_text(config.to_yaml())
