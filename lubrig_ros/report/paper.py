@@ -301,7 +301,12 @@ def comparison_markdown(
         f"Figures are in `{FIGURES}/` next to this page; run directories in `DIR/runs/<reading>/`.",
         "",
         "Only s = γ · A / A_default enters the dynamics of v_rel (model doc §5), so each reading is "
-        "one point of the coupling scan below.",
+        "one point of the coupling scan below. Regenerate with `lubrig paper --out DIR --docs docs` "
+        "(reads docs/study/coupling_scan.csv; `--recompute-scan [--workers N]` reruns the scan on the "
+        "sweep engine). Criteria follow the study's wording (bands stated in each criterion); two were "
+        "corrected after a first look at the results, both as readings of the text, not to a target: "
+        "C4a (the statement excepts the transient, so only stationarity is checked) and S2 (the "
+        "edge 3e-8 is matched to its printed digit).",
         "",
         "## Scores",
         "",

@@ -27,8 +27,8 @@ from ..core.run import simulate
 from .engine import SERIAL, run_sweep
 from .spec import Axis, Point, SweepSpec
 
-#: Default scan: 1e-3 … 1, log-spaced, then refined twice around every transition.
-SCAN_START, SCAN_STOP, SCAN_POINTS, SCAN_REFINE = 1e-3, 1.0, 25, 2
+#: Default scan: 1e-3 … 1, 25 log-spaced values, then refined three times around every transition.
+SCAN_START, SCAN_STOP, SCAN_POINTS, SCAN_REFINE = 1e-3, 1.0, 25, 3
 
 
 def scan_spec(couplings: list[float], duration: float, name: str = "coupling-scan") -> SweepSpec:
