@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ..app.selection import base_config
 from ..app.study import (
     CASES,
     STATEMENTS,
@@ -31,7 +32,6 @@ from ..app.study import (
     study_configs,
 )
 from ..core.params import CONVENTIONS, RigParameters
-from ..core.presets import load_case
 from ..core.run import simulate, summarize
 from ..core.stability import critical_damping_ratio
 
@@ -234,14 +234,14 @@ def _run_reading(
 ) -> tuple[Metrics, dict[int, dict[str, Any]], float]:
     """Simulate and measure every study run of one reading; write run directories.
 
-    With `figures` (the presets' reading) each run directory holds the CSV, config.yaml,
-    summary.json and the embedded figures (time history, phase plot, wavelet with `wavelet`),
-    copied to `figures` too; otherwise only config.yaml and summary.json are written (the page
-    quotes their numbers).
+    With `figures` (the presets' reading) each run directory is complete (figures/run.py: CSV,
+    config.yaml, summary.json, figures, wavelet.png with `wavelet`) and the embedded figures are
+    copied to `figures`; otherwise only config.yaml and summary.json are written (the page quotes
+    their numbers).
     """
-    from ..app.rundir import write_json, write_run
-    from ..cli.analyze import analyze_run  # until the wavelet policy's home app/analysis.py lands
-    from ..figures.timeseries import FIGURES as RUN_FIGURES
+    from ..app.analysis import DEFAULT_POLICY, analyze_displacement
+    from ..app.rundir import write_json
+    from ..figures.run import write_run_directory
 
     started = time.perf_counter()
     metrics: Metrics = {}
@@ -252,17 +252,17 @@ def _run_reading(
         name = "stickslip" if number == STICKSLIP else f"case{number:02d}"
         directory = out / name
         if figures is not None:
-            write_run(directory, config, trajectory, summary)
-            for figure in CASE_FIGURES if number != STICKSLIP else ():
-                if figure in RUN_FIGURES:  # the embedded ones only: rendering is most of the cost
-                    fig = RUN_FIGURES[figure](trajectory, config.name, config.rig.coupling_name)
-                    fig.savefig(directory / figure, dpi=110)
+            analysis = None
+            if wavelet and number != STICKSLIP:  # app/analysis.py's one policy (second half)
+                analysis = analyze_displacement(
+                    trajectory.time, trajectory.displacement, config.sample_rate,
+                    config.band.fundamental_hz, DEFAULT_POLICY,
+                )
+            summary = write_run_directory(directory, config, trajectory, summary, analysis)
         else:
             directory.mkdir(parents=True, exist_ok=True)
             (directory / "config.yaml").write_text(config.to_yaml())
             write_json(directory / "summary.json", summary)
-        if wavelet and number != STICKSLIP:
-            analyze_run(directory)
         metrics[number] = case_metrics(config, trajectory)
         summaries[number] = summary
         if figures is not None and number != STICKSLIP:
@@ -369,7 +369,7 @@ def comparison_markdown(
             + ", ".join(f"{s:.3g}" for s in best_s)
             + ".",
         ]
-    preset_rig = load_case(1).rig
+    preset_rig = base_config(case=1).rig
     lines += [
         "",
         f"The Table 1 presets (config/cases/) use the **{preset}** reading (γ = "
@@ -489,18 +489,17 @@ def run_paper(
     scan_source: str = "",
 ) -> Path:
     """Write the runs, every figure and comparison.md into out; return comparison.md."""
+    from ..app.rundir import check_output_dir
     from ..figures.curves import plot_friction_curve, plot_stability_map, save_figure
 
     if not (np.isfinite(duration) and duration >= MIN_DURATION):
         raise ValueError(f"--duration {duration!r} is not valid; expected at least {MIN_DURATION:g} s")
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {str(out)!r} exists and is not a directory")
+    out = check_output_dir(Path(out))
     started = time.perf_counter()
     figures = out / FIGURES
     figures.mkdir(parents=True, exist_ok=True)
     save_figure(plot_friction_curve(), figures / "friction_curve.png")
-    preset = load_case(1).rig.coupling_name
+    preset = base_config(case=1).rig.coupling_name
     cards: dict[str, list[Verdict]] = {}
     summaries: dict[str, dict[int, dict[str, Any]]] = {}
     for name in CONVENTIONS:
