@@ -123,3 +123,20 @@ def test_velocity_coupling_is_a_sweep_axis() -> None:
     )
     gammas = [from_mapping(p.config).rig.velocity_factor for p in spec.points]
     assert gammas == pytest.approx([1 / (20 * math.pi), 0.05, 0.1])
+
+
+def test_plant_parameter_velocity_coupling() -> None:
+    from lubrig_ros.app.contract import parameter
+    from lubrig_ros.app.plant_session import config_from, parameter_defaults
+
+    base = load_case(8)
+    assert parameter_defaults(base)["velocity_coupling"] == 0.0  # no explicit γ in the preset
+    assert config_from(base, {}).rig == base.rig
+    assert config_from(base, {"velocity_coupling": 0.07}).rig.velocity_factor == 0.07
+    explicit = base.with_overrides(velocity_coupling=0.07)
+    assert parameter_defaults(explicit)["velocity_coupling"] == 0.07
+    assert config_from(explicit, {"velocity_coupling": 0.0}).rig.coupling_name == "paper"
+    spec = parameter("plant", "velocity_coupling")
+    assert not spec.read_only and spec.check(0.1) == 0.1
+    with pytest.raises(ValueError):
+        spec.check(-0.1)
