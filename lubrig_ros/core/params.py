@@ -200,7 +200,7 @@ class RigParameters:
 
     @property
     def coupling_strength(self) -> float:
-        """s = γ · A / A_default: the one number the dynamics of v_rel depend on (model doc §5).
+        """S = γ · A / A_default: the one number the dynamics of v_rel depend on (model doc §5).
 
         For a friction law without a contact area (e.g. Stribeck) s is γ.
         """
