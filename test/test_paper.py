@@ -1,7 +1,8 @@
-"""`lubrig paper`: offline reproduction and comparison.md content (short run length)."""
+"""`lubrig paper`: offline reproduction, the scorecard per reading and the page (short run length)."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -9,30 +10,41 @@ from pathlib import Path
 import numpy as np
 from matplotlib.image import imread
 
+from lubrig_ros.app.study import STATEMENTS
 from lubrig_ros.cli.main import main
+from lubrig_ros.cli.paper import committed_scan
+from lubrig_ros.core.params import CONVENTIONS
 
 
-def test_paper_writes_comparison_with_verdicts(tmp_path: Path) -> None:
+def test_paper_writes_scorecard_and_embeds_every_figure(tmp_path: Path) -> None:
     out = tmp_path / "paper"
-    assert main(["paper", "--out", str(out), "--duration", "6"]) == 0
+    docs = tmp_path / "docs"
+    assert main(["paper", "--out", str(out), "--duration", "6", "--docs", str(docs)]) == 0
     text = (out / "comparison.md").read_text()
-    table = text.split("## All ten cases")[0]
-    rows = [line for line in table.splitlines() if line.startswith("| ") and "verdict" not in line]
-    assert len(rows) == 19
+    scorecard = text.split("## Scorecard per reading")[1].split("\n## ")[0]
+    rows = [line for line in scorecard.splitlines() if line.startswith("| ") and "criterion" not in line]
+    assert [r.split(" | ")[0][2:] for r in rows] == [s.key for s in STATEMENTS]
     for row in rows:
-        verdict = row.rstrip(" |").split(" | ")[-1]
-        assert verdict == "agree" or verdict.startswith("differs"), row
-    landmarks = [r for r in rows if r.startswith("| 3 landmarks")]
-    assert len(landmarks) == 4 and all(r.endswith("| agree |") for r in landmarks)
-    assert any(r.startswith("| 6 case 9") for r in rows)
-    assert sum(r.startswith("| 5/6 physical") for r in rows) == 4
-    for number in range(1, 11):
-        assert (out / "cases" / f"case{number:02d}" / "wavelet.png").is_file()
-        assert (out / "cases" / f"case{number:02d}_physical" / "summary.json").is_file()
-        assert f"| case{number:02d} | paper |" in text and f"| case{number:02d} | physical |" in text
-    for name in ("friction_curve.png", "stability_map.png", "stickslip/time_history.png"):
-        image = imread(out / name)
-        assert float(np.std(image[..., :3])) > 0.02, name
+        marks = row.rstrip(" |").split(" | ")[-len(CONVENTIONS):]
+        assert all(m in ("✓", "✗") for m in marks), row
+    landmarks = [r for r in rows if r.startswith("| F")]
+    assert len(landmarks) == 3 and all(r.endswith("| ✓ | ✓ | ✓ |") for r in landmarks)
+    for name in CONVENTIONS:
+        assert re.search(rf"\| \**{name}\** \| [0-9.e-]+ \| [0-9.e-]+ \| \**\d+ of {len(STATEMENTS)}", text)
+    # every image is embedded with a link relative to the page, and each target exists in DIR and docs/
+    images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
+    assert len(images) >= 30 + 3 + 4
+    assert not [i for i in images if i.startswith(("/", "DIR"))]
+    for image in images:
+        for root in (out, docs):
+            picture = imread(root / image)
+            assert float(np.std(picture[..., :3])) > 0.02, image
+    assert (docs / "study.md").read_text() == text
+    links = re.findall(r"(?<!!)\[[^\]]*\]\(([^)]+)\)", text)
+    assert not [link for link in links if not link.startswith("http")]  # no links into DIR/runs
+    assert committed_scan().is_file() and (out / "coupling_scan.csv").is_file()
+    for name in CONVENTIONS:
+        assert (out / "runs" / name / "case08" / "summary.json").is_file()
 
 
 def test_paper_bad_duration_one_line() -> None:

@@ -396,8 +396,11 @@ PLANT_PARAMETERS: tuple[NodeParameter, ...] = (
     _p("initial_perturbation", "double", None, "x(0) = (1 + this) x0; applied at the next reset",
        read_only=False, from_config="simulation.initial_perturbation"),
     _p("convention", "string", None,
-       "physical | paper; empty: the run configuration's; applied at the next reset",
-       choices=("", *CONVENTIONS), read_only=False, from_config="rig.convention"),
+       "physical | paper | hertz (γ = 1, 1/ω0, 1/f0); empty: the run configuration's; applied at "
+       "the next reset", choices=("", *CONVENTIONS), read_only=False, from_config="rig.convention"),
+    _p("velocity_coupling", "double", None,
+       "explicit γ in v_rel = v_band − γ ẋ, overriding the convention; 0: the convention's γ; "
+       "applied at the next reset", low=0.0, read_only=False, from_config="rig.velocity_coupling"),
     *(
         _p(f"rig.{n}", "double", None, f"rig {n}; applied at the next reset", unit=RIG_UNITS[n],
            read_only=False, from_config=f"rig.{n}")
@@ -446,7 +449,7 @@ BELT_DRIVE_PARAMETERS: tuple[NodeParameter, ...] = (
 
 ANALYSIS_PARAMETERS: tuple[NodeParameter, ...] = (
     *RUN_SELECTION,
-    _p("convention", "string", "", "physical | paper (empty: from the configuration)",
+    _p("convention", "string", "", "physical | paper | hertz (empty: from the configuration)",
        choices=("", *CONVENTIONS)),
     _p("window", "integer", 2048, "samples in the sliding wavelet window", low=64),
     _p("n_scales", "integer", 32, "wavelet scales", low=2, high=256),

@@ -96,6 +96,8 @@ def parameter_defaults(base: RunConfig) -> dict[str, Any]:
     for p in PLANT_PARAMETERS:
         if p.from_config:
             value = _field(data, p.from_config)
+            if value is None and p.name == "velocity_coupling":
+                value = 0.0  # no explicit γ: the convention's
             out[p.name] = float(value) if p.type == "double" else value
     return out
 
@@ -104,7 +106,8 @@ def config_from(base: RunConfig, values: Mapping[str, Any]) -> RunConfig:
     """The run configuration of `base` with the plant's configuration parameters applied.
 
     `values` maps parameter names (CONFIG_PARAMETERS) to values; missing ones keep base's.
-    An empty `convention` means the base configuration's. ParameterError for invalid values.
+    An empty `convention` means the base configuration's; `velocity_coupling` 0 means the
+    convention's γ, > 0 an explicit γ overriding it. ParameterError for invalid values.
     """
     defaults = parameter_defaults(base)
 
@@ -114,6 +117,8 @@ def config_from(base: RunConfig, values: Mapping[str, Any]) -> RunConfig:
     data = base.to_dict()
     data["rig"].update({n: value(f"rig.{n}") for n in RIG_FIELDS})
     data["rig"]["convention"] = value("convention") or base.rig.convention
+    gamma = value("velocity_coupling")  # 0: the convention's γ
+    data["rig"]["velocity_coupling"] = float(gamma) if gamma else None
     friction = {n: value(f"friction.{n}") for n in FRICTION_FIELDS if n != "normal_force"}
     friction["normal_force"] = value("rig.normal_force")
     data["rig"]["friction"] = friction

@@ -2,9 +2,9 @@
 
 A run is selected by ONE source — a study case (1..10), a configuration file, or the built-in
 default (config/rig.yaml) — and then optionally overridden: the band profile, the contact area,
-rig fields (convention, damping ratio, mass, natural frequency) and simulation fields (duration,
-sample rate, rtol). Overrides left at None keep the selected configuration's value, so the
-defaults live in one place: the configuration files under config/.
+rig fields (convention, velocity coupling γ, damping ratio, mass, natural frequency) and
+simulation fields (duration, sample rate, rtol). Overrides left at None keep the selected
+configuration's value, so the defaults live in one place: the configuration files under config/.
 
 Used by `lubrig simulate`, `lubrig rig`, `lubrig friction`, `lubrig stability`, the nodes
 (`case` / `config_file` parameters) and sweep specs (`base_case`).
@@ -21,7 +21,7 @@ from ..core.presets import CASE_NUMBERS, RunConfig, default_config, load_case, l
 from ..core.profiles import BandProfile
 
 #: Rig fields an override may set (RunConfig.with_overrides).
-RIG_OVERRIDES = ("convention", "damping_ratio", "mass", "natural_frequency")
+RIG_OVERRIDES = ("convention", "velocity_coupling", "damping_ratio", "mass", "natural_frequency")
 #: Simulation fields an override may set.
 RUN_OVERRIDES = ("duration", "sample_rate", "rtol")
 
@@ -67,6 +67,7 @@ class RunSelection:
     band: BandProfile | None = None
     contact_area: str | float | None = None  # 'corrected' | 'printed' | m²
     convention: str | None = None
+    velocity_coupling: str | float | None = None  # γ: a convention name or a number > 0
     damping_ratio: float | None = None
     mass: float | None = None
     natural_frequency: float | None = None

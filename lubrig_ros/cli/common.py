@@ -28,6 +28,19 @@ def parse_finite(option: str, text: str, what: str) -> float:
     return value
 
 
+def parse_coupling(text: str, option: str = "--velocity-coupling") -> str | float:
+    """A velocity coupling γ: a convention name (physical | paper | hertz) or a finite number > 0."""
+    from ..core.params import CONVENTIONS
+
+    if text in CONVENTIONS:
+        return text
+    what = f"one of {'|'.join(CONVENTIONS)} or a number > 0 (γ in v_rel = v_band − γ ẋ)"
+    value = parse_finite(option, text, what)
+    if value <= 0.0:
+        raise ValueError(f"{option} {text!r} must be > 0; expected {what}")
+    return value
+
+
 def allow_negative_numbers(parser: argparse.ArgumentParser) -> None:
     """Let values such as "-1e-7" reach our own validation instead of argparse's option parsing."""
     parser._negative_number_matcher = NEGATIVE_NUMBER
@@ -47,14 +60,21 @@ def add_run_selection(parser: argparse.ArgumentParser) -> None:
     band.add_argument("--band-velocity", metavar="V", help="constant band velocity, m/s")
     band.add_argument("--cycle", nargs=4, metavar=("V1", "V2", "TC", "TRAMP"), help="study band cycle")
     band.add_argument("--profile", metavar="CSV", help="table of time_s,band_velocity_m_s (piecewise linear)")
-    parser.add_argument("--convention", metavar="C", help="relative-velocity convention: physical | paper")
+    parser.add_argument(
+        "--convention", metavar="C", help="relative-velocity convention: physical | paper | hertz"
+    )
+    parser.add_argument(
+        "--velocity-coupling",
+        metavar="G",
+        help="γ in v_rel = v_band − γ ẋ: physical (1) | paper (1/ω0) | hertz (1/f0) | a number > 0",
+    )
     parser.add_argument("--zeta", metavar="Z", help="damping ratio ζ")
     parser.add_argument("--mass", metavar="KG", help="mass m, kg")
     parser.add_argument("--natural-frequency", metavar="HZ", help="natural frequency f0, Hz")
     parser.add_argument("--contact-area", metavar="A", help="corrected | printed | area in m²")
     parser.add_argument("--duration", metavar="S", help="rig time to simulate, s")
     parser.add_argument("--sample-rate", metavar="HZ", help="output sample rate, Hz (default 1000)")
-    parser.add_argument("--rtol", metavar="R", help="integrator relative tolerance (default 1e-8)")
+    parser.add_argument("--rtol", metavar="R", help="integrator relative tolerance (default 1e-12)")
     allow_negative_numbers(parser)
 
 
@@ -93,6 +113,10 @@ def selection_from_args(args: argparse.Namespace) -> RunSelection:
         band=band_from_args(args),
         contact_area=getattr(args, "contact_area", None),
         convention=getattr(args, "convention", None),
+        velocity_coupling=(
+            None if getattr(args, "velocity_coupling", None) is None
+            else parse_coupling(args.velocity_coupling)
+        ),
         damping_ratio=_number(args, "zeta", "--zeta", "a damping ratio >= 0"),
         mass=_number(args, "mass", "--mass", "a mass > 0 in kg"),
         natural_frequency=_number(args, "natural_frequency", "--natural-frequency", "a frequency > 0 in Hz"),

@@ -1,4 +1,9 @@
-"""`lubrig paper --out DIR [--duration S]`: reproduce the study offline and write comparison.md."""
+"""`lubrig paper --out DIR`: reproduce the study offline, score every statement, write comparison.md.
+
+The coupling scan is read from the committed table (docs/study/coupling_scan.csv) unless
+--recompute-scan runs it again on the sweep engine (serial, or --workers N local Dask workers);
+--docs DOCS copies the page to DOCS/study.md and its figures to DOCS/study/.
+"""
 
 from __future__ import annotations
 
@@ -6,16 +11,51 @@ import argparse
 import time
 from pathlib import Path
 
-from ..report.paper import run_paper
+from ..app.study import read_scan_csv, write_scan_csv
+from ..core.presets import config_dir
+from ..report.paper import copy_to_docs, run_paper
 from .common import parse_finite
+
+SCAN_TABLE = "coupling_scan.csv"
+
+
+def committed_scan() -> Path:
+    """The scan table committed with the repository (docs/study/coupling_scan.csv)."""
+    return config_dir().parent / "docs" / "study" / SCAN_TABLE
 
 
 def run(args: argparse.Namespace) -> int:
     """Entry of `lubrig paper`."""
     duration = parse_finite("--duration", args.duration, "a rig time in s (>= 4)")
+    out = Path(args.out)
     started = time.perf_counter()
-    page = run_paper(Path(args.out), duration)
+    if args.recompute_scan:
+        from ..sweep.engine import LOCAL, SERIAL
+        from ..sweep.study import run_scan
+
+        workers = None
+        if args.workers is not None:
+            workers = int(parse_finite("--workers", args.workers, "a worker count >= 1"))
+            if workers < 1:
+                raise ValueError(f"--workers {args.workers!r} must be >= 1")
+        scan = run_scan(out / "scan", scheduler=LOCAL if workers else SERIAL, workers=workers)
+        source = f"recomputed in {time.perf_counter() - started:.0f} s"
+    else:
+        path = Path(args.scan) if args.scan else committed_scan()
+        if not path.is_file():
+            raise ValueError(f"scan table {str(path)!r} not found; pass --scan CSV or --recompute-scan")
+        scan = read_scan_csv(path)
+        source = f"read from {SCAN_TABLE}"
+    out.mkdir(parents=True, exist_ok=True)
+    write_scan_csv(out / SCAN_TABLE, scan)
+    page = run_paper(out, duration, scan=scan, scan_source=source)
     print(f"lubrig paper: done in {time.perf_counter() - started:.1f} s; comparison: {page}")
+    if args.docs:
+        docs = Path(args.docs)
+        target = copy_to_docs(page, docs)
+        if args.recompute_scan:
+            write_scan_csv(docs / "study" / SCAN_TABLE, scan)
+        print(f"lubrig paper: copied to {target} and {docs / 'study'}/")
     return 0
 
 
@@ -23,10 +63,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add `lubrig paper`."""
     parser = subparsers.add_parser(
         "paper",
-        help="reproduce the study offline (curves, stick-slip, ten cases) and compare",
-        description="Friction curve, stability map, stick-slip at 2e-8 m/s, the ten Table 1 cases "
-        "(paper and physical conventions) and comparison.md against the model document.",
+        help="reproduce the study offline and score every statement per velocity-coupling reading",
+        description="Friction curve, stability maps, stick-slip at 2e-8 m/s and the ten Table 1 cases "
+        "for every named velocity coupling (physical, paper, hertz), the scorecard of every statement "
+        "of the study, the coupling scan's figures, and comparison.md with every figure embedded.",
     )
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
     parser.add_argument("--duration", default="20", metavar="S", help="rig time per case, s (20)")
+    scan = parser.add_mutually_exclusive_group()
+    scan.add_argument("--scan", metavar="CSV", help="coupling-scan table (default: the committed one)")
+    scan.add_argument(
+        "--recompute-scan", action="store_true", help="run the coupling scan on the sweep engine"
+    )
+    parser.add_argument("--workers", metavar="N", help="with --recompute-scan: local Dask workers")
+    parser.add_argument(
+        "--docs", metavar="DOCS", help="copy the page to DOCS/study.md, figures to DOCS/study/"
+    )
     parser.set_defaults(func=run)

@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     write_run_directory(out, config, trajectory, summary)
     print(
         f"{config.name}: {config.duration:g} s of rig time in {elapsed:.3f} s "
-        f"({config.rig.convention} convention); x peak-to-peak {summary['x_peak_to_peak']:.3e} m, "
+        f"({config.rig.coupling_label}); x peak-to-peak {summary['x_peak_to_peak']:.3e} m, "
         f"μ {summary['mu_min']:.4g}…{summary['mu_max']:.4g}, stick fraction {summary['stick_fraction']:.2f}; "
         f"results in {out}/",
         file=sys.stdout,

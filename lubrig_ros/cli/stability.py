@@ -16,7 +16,7 @@ from typing import Any
 from ..core.friction import friction_minimum, friction_peak
 from ..core.params import CONVENTIONS, RigParameters
 from ..core.stability import critical_damping_ratio, unstable_intervals
-from .common import add_run_source, allow_negative_numbers, parse_finite, source_from_args
+from .common import add_run_source, allow_negative_numbers, parse_coupling, parse_finite, source_from_args
 from .friction import friction_parameters
 
 
@@ -28,24 +28,35 @@ def parse_zeta(text: str) -> float:
     return value
 
 
-def rig_parameters(base: RigParameters, convention: str | None, contact_area: str | None) -> RigParameters:
-    """The selected run's rig with the relative-velocity convention and contact area overridden."""
+def rig_parameters(
+    base: RigParameters,
+    convention: str | None,
+    contact_area: str | None,
+    velocity_coupling: str | None = None,
+) -> RigParameters:
+    """The selected run's rig with the convention (or an explicit γ) and contact area overridden."""
     if convention is not None and convention not in CONVENTIONS:
         raise ValueError(
             f"--convention {convention!r} is not valid; expected one of {'|'.join(CONVENTIONS)}"
         )
-    return replace(
+    rig = replace(
         base,
         convention=base.convention if convention is None else convention,
+        velocity_coupling=base.velocity_coupling if convention is None else None,
         friction=friction_parameters(base.friction, contact_area),
     )
+    if velocity_coupling is not None:
+        rig = replace(rig, velocity_coupling=parse_coupling(velocity_coupling))
+    return rig
 
 
 def stability_report(rig: RigParameters, zetas: list[float]) -> dict[str, Any]:
     """Unstable band-velocity intervals (m/s) for each ζ, with the zone edges, JSON-ready."""
     peak, minimum = friction_peak(rig.friction), friction_minimum(rig.friction)
     return {
-        "convention": rig.convention,
+        "convention": rig.coupling_name,
+        "velocity_coupling": rig.velocity_factor,
+        "coupling_strength": rig.coupling_strength,
         "zone_edges": {"peak_velocity": peak.velocity, "minimum_velocity": minimum.velocity},
         "results": [
             {
@@ -60,7 +71,7 @@ def stability_report(rig: RigParameters, zetas: list[float]) -> dict[str, Any]:
 def _print_table(report: dict[str, Any]) -> None:
     edges = report["zone_edges"]
     print(
-        f"convention: {report['convention']}; zone 2 spans "
+        f"convention: {report['convention']} (γ = {report['velocity_coupling']:.4g}); zone 2 spans "
         f"{edges['peak_velocity']:.4g} … {edges['minimum_velocity']:.4g} m/s"
     )
     for result in report["results"]:
@@ -73,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     """Execute `lubrig stability`."""
     config = source_from_args(args).base()
     zetas = [parse_zeta(text) for text in args.zeta] if args.zeta else [config.rig.damping_ratio]
-    rig = rig_parameters(config.rig, args.convention, args.contact_area)
+    rig = rig_parameters(config.rig, args.convention, args.contact_area, args.velocity_coupling)
     report = stability_report(rig, zetas)
     if args.at is not None:
         v = parse_finite("--at", args.at, "a band velocity > 0 in m/s")
@@ -122,9 +133,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--convention",
         default=None,
-        metavar="physical|paper",
-        help="relative velocity v_band − ẋ (physical, the default run's) or v_band − ẋ/ω0 (paper: "
-        "reproduces the study's figures; the cases'); default: the selected run's",
+        metavar="physical|paper|hertz",
+        help="relative velocity v_band − γ ẋ with γ = 1 (physical, the default run's), 1/ω0 (paper, "
+        "the cases') or 1/f0 (hertz); default: the selected run's",
+    )
+    parser.add_argument(
+        "--velocity-coupling",
+        metavar="G",
+        help="γ in v_rel = v_band − γ ẋ: a convention name or a number > 0 (overrides --convention)",
     )
     parser.add_argument(
         "--contact-area",

@@ -27,8 +27,18 @@ __all__ = [
     "_check_range",
 ]
 
-Convention = Literal["physical", "paper"]
-CONVENTIONS: tuple[str, ...] = ("physical", "paper")
+Convention = Literal["physical", "paper", "hertz"]
+#: Named readings of the velocity coupling γ in v_rel = v_band − γ ẋ (see COUPLING_READINGS).
+CONVENTIONS: tuple[str, ...] = ("physical", "paper", "hertz")
+#: What each named convention sets γ to, and the argument for it (docs/model.md, docs/study.md).
+COUPLING_READINGS: dict[str, str] = {
+    "physical": "γ = 1: v_rel = v_band − ẋ, the study's written equation in SI units "
+    "(dimensionally consistent; what a rig engineer should use)",
+    "paper": "γ = 1/ω0: friction evaluated at the hyper-time derivative x' = dx/dt', t' = ω0 t "
+    "(the study's non-dimensional form taken literally)",
+    "hertz": "γ = 1/f0: time counted in natural periods, t' = f0 t (ω0 written where f0 was "
+    "meant, a factor 2π); same dynamics as γ = 1 with the printed contact area (s = 0.1)",
+}
 
 #: Contact area that reproduces every friction coefficient the study reports (default).
 CONTACT_AREA_CORRECTED = 2.83e-10
@@ -95,6 +105,17 @@ class FrictionParameters:
         return tuple(getattr(self, f.name) for f in fields(self))
 
 
+def convention_coupling(convention: str, natural_frequency: float) -> float:
+    """γ of a named convention for a rig of natural frequency f0 (Hz)."""
+    if convention == "physical":
+        return 1.0
+    if convention == "paper":
+        return 1.0 / (2.0 * math.pi * natural_frequency)
+    if convention == "hertz":
+        return 1.0 / natural_frequency
+    raise ParameterError(f"convention={convention!r} is not valid; expected one of {list(CONVENTIONS)}")
+
+
 @dataclass(frozen=True)
 class RigParameters:
     """Mass–spring–damper held against the band, plus the relative-velocity convention."""
@@ -102,10 +123,12 @@ class RigParameters:
     mass: float = 0.1  # m, kg
     natural_frequency: float = 10.0  # f0, Hz
     damping_ratio: float = 0.01  # ζ, dimensionless
-    convention: str = "physical"  # 'physical' (v_band − ẋ) or 'paper' (v_band − ẋ/ω0)
+    convention: str = "physical"  # named γ: physical (1), paper (1/ω0), hertz (1/f0)
     #: the friction law's parameter set (FrictionParameters = junction kinetics, or any registered
     #: law's, see core.friction_laws); its normal_force is the rig's load N.
     friction: Any = field(default_factory=FrictionParameters)
+    #: explicit γ (s/s, > 0) overriding the convention's; a convention name is accepted too
+    velocity_coupling: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mass", _check_positive("mass", self.mass))
@@ -120,6 +143,28 @@ class RigParameters:
             raise ParameterError(
                 f"convention={self.convention!r} is not valid; expected one of {list(CONVENTIONS)}"
             )
+        coupling = self.velocity_coupling
+        if isinstance(coupling, str) and coupling.strip() in CONVENTIONS:
+            object.__setattr__(self, "convention", coupling.strip())
+            coupling = None
+        elif isinstance(coupling, str) and coupling.strip() in ("", "none", "null"):
+            coupling = None
+        if coupling is not None:
+            if isinstance(coupling, bool):
+                coupling = "bool"  # rejected below with the valid choices
+            try:
+                coupling = float(coupling)
+            except (TypeError, ValueError):
+                raise ParameterError(
+                    f"velocity_coupling={self.velocity_coupling!r} is not valid; expected one of "
+                    f"{list(CONVENTIONS)} or a finite number > 0 (γ in v_rel = v_band − γ ẋ)"
+                ) from None
+            if not (math.isfinite(coupling) and coupling > 0.0):
+                raise ParameterError(
+                    f"velocity_coupling={self.velocity_coupling!r} is not valid; expected one of "
+                    f"{list(CONVENTIONS)} or a finite number > 0 (γ in v_rel = v_band − γ ẋ)"
+                )
+        object.__setattr__(self, "velocity_coupling", coupling)
         if not (is_dataclass(self.friction) and isinstance(getattr(type(self.friction), "law", None), str)):
             raise ParameterError(
                 f"friction={self.friction!r} is not valid; expected the parameters of a friction law "
@@ -143,8 +188,30 @@ class RigParameters:
 
     @property
     def velocity_factor(self) -> float:
-        """γ in v_rel = v_band − γ ẋ: 1 (physical) or 1/ω0 in s (paper)."""
-        return 1.0 if self.convention == "physical" else 1.0 / self.angular_frequency
+        """γ in v_rel = v_band − γ ẋ: explicit, or by convention 1 (physical), 1/ω0 (paper), 1/f0 (hertz)."""
+        if self.velocity_coupling is not None:
+            return self.velocity_coupling
+        return convention_coupling(self.convention, self.natural_frequency)
+
+    @property
+    def coupling_name(self) -> str:
+        """The convention's name, or 'explicit' when γ is given as a number."""
+        return self.convention if self.velocity_coupling is None else "explicit"
+
+    @property
+    def coupling_strength(self) -> float:
+        """S = γ · A / A_default: the one number the dynamics of v_rel depend on (model doc §5).
+
+        For a friction law without a contact area (e.g. Stribeck) s is γ.
+        """
+        area = getattr(self.friction, "contact_area", CONTACT_AREA_CORRECTED)
+        return self.velocity_factor * area / CONTACT_AREA_CORRECTED
+
+    @property
+    def coupling_label(self) -> str:
+        """Short text for titles: 'paper convention (γ = 0.0159)' or 'γ = 0.05'."""
+        gamma = f"γ = {self.velocity_factor:.3g}"
+        return gamma if self.velocity_coupling is not None else f"{self.convention} convention ({gamma})"
 
     def relative_velocity(self, band_velocity: Any, velocity: Any) -> Any:
         """v_rel = v_band − γ ẋ in m/s (scalars or arrays): the one home of the convention."""

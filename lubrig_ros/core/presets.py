@@ -92,8 +92,10 @@ class RunConfig:
 
     def with_overrides(self, **changes: Any) -> RunConfig:
         """Copy with rig fields (convention, damping_ratio, ...) or run fields replaced."""
-        rig_fields = {"mass", "natural_frequency", "damping_ratio", "convention"}
+        rig_fields = {"mass", "natural_frequency", "damping_ratio", "convention", "velocity_coupling"}
         rig_changes = {k: v for k, v in changes.items() if k in rig_fields and v is not None}
+        if "convention" in rig_changes and "velocity_coupling" not in rig_changes:
+            rig_changes["velocity_coupling"] = None  # a named convention replaces an explicit γ
         run_changes = {k: v for k, v in changes.items() if k not in rig_fields and v is not None}
         return replace(self, rig=replace(self.rig, **rig_changes), **run_changes)
 

@@ -84,7 +84,9 @@ def summarize(trajectory: Trajectory, config: RunConfig) -> dict[str, Any]:
     peaks = spectral_peaks(x, config.sample_rate)
     return {
         "name": config.name,
-        "convention": config.rig.convention,
+        "convention": config.rig.coupling_name,
+        "velocity_coupling": config.rig.velocity_factor,  # γ in v_rel = v_band − γ ẋ
+        "coupling_strength": config.rig.coupling_strength,  # s = γ · A / A_default
         "duration": config.duration,
         "sample_rate_hz": config.sample_rate,
         "samples": len(trajectory),

@@ -1,7 +1,8 @@
 """Linear stability of the steady sliding equilibrium (Routh–Hurwitz on the linearized rig).
 
 Linearizing m ẍ + c ẋ + k x = N μ(v_band − γ ẋ) about x0 = N μ(v_band)/k gives, in hyper-time,
-x̃'' + (2ζ + ω0 γ N μ'(v_band)/k) x̃' + x̃ = 0 with γ = 1 (physical) or 1/ω0 (paper): the
+x̃'' + (2ζ + ω0 γ N μ'(v_band)/k) x̃' + x̃ = 0 with the rig's velocity coupling γ
+(RigParameters.velocity_factor: named convention or explicit), the same γ the integrator uses: the
 equilibrium is stable exactly when that effective damping is positive.
 
 The verdict needs only μ'(v_band) and so holds for every friction law; the zones need the law's

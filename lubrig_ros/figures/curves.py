@@ -161,10 +161,7 @@ def plot_stability_map(
     ax.set_ylim(zeta_min, zeta_max)
     ax.set_xlabel("band velocity v_band (m/s)")
     ax.set_ylabel("damping ratio ζ (–)")
-    v_rel = "v_band − ẋ" if rig.convention == "physical" else "v_band − ẋ/ω0"
-    ax.set_title(
-        f"Linear stability of steady sliding — {rig.convention} convention (v_rel = {v_rel})"
-    )
+    ax.set_title(f"Linear stability of steady sliding — {rig.coupling_label}, v_rel = v_band − γ ẋ")
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(loc="lower right", fontsize=9, framealpha=0.9)
     return fig

@@ -82,8 +82,8 @@ class Plant(Node):
             self._thread.start()
         config = self.session.config
         self.get_logger().info(
-            f"plant: mode={self.mode}, {config.sample_rate:g} Hz, convention "
-            f"{config.rig.convention}, {config.samples} samples per run (sim)"
+            f"plant: mode={self.mode}, {config.sample_rate:g} Hz, {config.rig.coupling_label}, "
+            f"{config.samples} samples per run (sim)"
         )
 
     def _on_band_raw(self, data: bytes) -> None:
