@@ -12,6 +12,7 @@ import os
 import socket
 import time
 import traceback
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -132,9 +133,12 @@ def _measure(point: Point) -> dict[str, Any]:
     return out
 
 
-def run_point(point: Point) -> dict[str, Any]:
-    """Simulate and summarize one point; return its record (never raises)."""
-    started = time.time()
+def point_record(point: Point, measure: Callable[[Point], dict[str, Any]]) -> dict[str, Any]:
+    """Run `measure` on one point and wrap its results in the store's record (never raises).
+
+    A failed point is data (status "error", its message and traceback, no partial results), not a
+    crash of the sweep; non-finite floats become null (JSON and Parquet agree on null, not on NaN).
+    """
     clock = time.perf_counter()
     record: dict[str, Any] = {
         "point_id": point.point_id,
@@ -143,11 +147,11 @@ def run_point(point: Point) -> dict[str, Any]:
         "status": "ok",
         "error": None,
         "worker": f"{socket.gethostname()}:{os.getpid()}",
-        "started_at": started,
+        "started_at": time.time(),
     }
     try:
-        record.update(_measure(point))
-    except Exception as exc:  # a failed point is data (no partial results), not a crash of the sweep
+        record.update(measure(point))
+    except Exception as exc:
         record["status"] = "error"
         record["error"] = f"{type(exc).__name__}: {exc}"
         record["traceback"] = traceback.format_exc(limit=5)
@@ -155,8 +159,13 @@ def run_point(point: Point) -> dict[str, Any]:
     record["finished_at"] = time.time()
     for key, value in list(record.items()):
         if isinstance(value, float) and not math.isfinite(value):
-            record[key] = None  # JSON and Parquet agree on null, not on NaN/inf text
+            record[key] = None
     return record
+
+
+def run_point(point: Point) -> dict[str, Any]:
+    """Simulate and summarize one point; return its record (never raises)."""
+    return point_record(point, _measure)
 
 
 def warm_up() -> float:

@@ -12,10 +12,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
-import socket
-import time
-import traceback
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +21,7 @@ from ..app.study import CASES, STICKSLIP, Metrics, case_metrics, study_configs, 
 from ..core.presets import from_mapping
 from ..core.run import simulate
 from .engine import SERIAL, run_sweep
+from .point import point_record
 from .spec import Axis, Point, SweepSpec
 
 #: Default scan: 1e-3 … 1, 25 log-spaced values, then refined three times around every transition.
@@ -51,31 +48,14 @@ def scan_spec(couplings: list[float], duration: float, name: str = "coupling-sca
     )
 
 
+def _study_metrics(point: Point) -> dict[str, Any]:
+    config = from_mapping(point.config)
+    return {"metrics": case_metrics(config, simulate(config))}
+
+
 def run_study_point(point: Point) -> dict[str, Any]:
     """Simulate one study run and measure it (record for the sweep store; never raises)."""
-    clock = time.perf_counter()
-    record: dict[str, Any] = {
-        "point_id": point.point_id,
-        "index": point.index,
-        "values": point.values,
-        "status": "ok",
-        "error": None,
-        "worker": f"{socket.gethostname()}:{os.getpid()}",
-        "started_at": time.time(),
-    }
-    try:
-        config = from_mapping(point.config)
-        record["metrics"] = case_metrics(config, simulate(config))
-    except Exception as exc:  # a failed point is data, not a crash of the scan
-        record["status"] = "error"
-        record["error"] = f"{type(exc).__name__}: {exc}"
-        record["traceback"] = traceback.format_exc(limit=5)
-    record["point_seconds"] = time.perf_counter() - clock
-    record["finished_at"] = time.time()
-    for key, value in list(record.items()):
-        if isinstance(value, float) and not math.isfinite(value):
-            record[key] = None
-    return record
+    return point_record(point, _study_metrics)
 
 
 def _collect(directory: Path, spec: SweepSpec, scan: dict[float, Metrics]) -> None:
