@@ -3,13 +3,14 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test lint typecheck bench
+.PHONY: setup run test test-fast lint typecheck bench
 
-$(STAMP): requirements.txt setup.py
+$(STAMP): requirements.txt setup.py test/support/pyproject.toml
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -r requirements.txt
 	$(PY) -m pip install -q --no-deps -e .
+	$(PY) -m pip install -q --no-deps -e test/support  # lubrig_testkit: helpers of test/ and bench/
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -19,8 +20,13 @@ setup: $(STAMP)
 run: setup
 	$(VENV)/bin/lubrig rig --case 1 --duration 10 --bag runs/latest
 
+# The whole suite (ROS node processes over DDS included); the README's test command.
 test: setup
 	$(PY) -m pytest -q test
+
+# The ROS-free, quick tier: no node processes, no DDS, no long runs (see test/conftest.py).
+test-fast: setup
+	$(PY) -m pytest -q -m "not ros and not slow" test
 
 lint: setup
 	$(VENV)/bin/ruff check lubrig_ros test bench
