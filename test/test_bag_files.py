@@ -9,9 +9,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from lubrig_testkit.crosscheck import read_mcap, read_rosbags
 
 from lubrig_ros.bag import BagError, BagWriter, check_bag, repair_bag
-from lubrig_ros.bag.crosscheck import read_mcap, read_rosbags
 
 N = 3000
 

@@ -7,11 +7,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 from matplotlib.image import imread
 
 from lubrig_ros.cli.main import main
 
 
+@pytest.mark.slow
 def test_paper_writes_comparison_with_verdicts(tmp_path: Path) -> None:
     out = tmp_path / "paper"
     assert main(["paper", "--out", str(out), "--duration", "6"]) == 0
