@@ -52,7 +52,8 @@ def _on_disk(bag: Path, scratch: Path) -> dict[str, int]:
     shutil.rmtree(scratch, ignore_errors=True)
     shutil.copytree(bag, scratch)
     repair_bag(scratch)
-    return {t.name: t.count for t in check_bag(scratch).topics if t.name != "/lubrig/run_config"}
+    return {t.name: t.count for t in check_bag(scratch).topics
+            if t.count and t.name != "/lubrig/run_config"}
 
 
 def _expect_all(bag: Path, published: dict[str, int]) -> None:
@@ -86,7 +87,7 @@ def test_sigkill_then_repair_keeps_flushed_messages(procs, tmp_path: Path) -> No
     rec, bag, _cfg, published = _record(procs, tmp_path, 2000, ("--flush-interval", "0.3"))
     # kill once every published message is flushed: a repair of a copy of the files keeps them all
     wait_until(lambda: _on_disk(bag, tmp_path / "copy") == published, 120, "all messages flushed",
-               alive=(rec,))
+               alive=(rec,), every=0.5)
     rec.kill()
     assert not (bag / "metadata.yaml").exists()
     report = repair_bag(bag)

@@ -40,8 +40,8 @@ LOCK_DIR = Path(tempfile.gettempdir()) / "lubrig_ros_domains"
 
 
 def wait_until(condition: Callable[[], object], timeout: float, what: str = "condition",
-               alive: tuple[NodeProcess, ...] = ()) -> None:
-    """Poll condition every 20 ms until true; AssertionError after timeout s or if a process dies."""
+               alive: tuple[NodeProcess, ...] = (), every: float = 0.02) -> None:
+    """Poll condition every `every` s until true; AssertionError after timeout s or if a process dies."""
     end = time.monotonic() + timeout
     while not condition():
         for proc in alive:
@@ -50,7 +50,7 @@ def wait_until(condition: Callable[[], object], timeout: float, what: str = "con
                                      f"{proc.log()}")
         if time.monotonic() > end:
             raise AssertionError(f"{what}: not within {timeout} s")
-        time.sleep(0.02)
+        time.sleep(every)
 
 
 class DomainLease:
