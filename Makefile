@@ -22,11 +22,11 @@ run: setup
 
 # The whole suite (ROS node processes over DDS included); the README's test command.
 test: setup
-	$(PY) -m pytest -q test
+	$(PY) -m pytest -q $(PYTEST_ARGS) test
 
 # The ROS-free, quick tier: no node processes, no DDS, no long runs (see test/conftest.py).
 test-fast: setup
-	$(PY) -m pytest -q -m "not ros and not slow" test
+	$(PY) -m pytest -q -m "not ros and not slow" $(PYTEST_ARGS) test
 
 lint: setup
 	$(VENV)/bin/ruff check lubrig_ros test bench
