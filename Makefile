@@ -42,3 +42,4 @@ bench: setup
 	$(PY) bench/bench_recorder.py --seconds 10 --rate 1000
 	$(PY) bench/bench_sweep.py --points 16 --duration 20 --workers 1 2
 	$(PY) bench/bench_realtime.py --duration 60
+	$(PY) bench/bench_replay.py
