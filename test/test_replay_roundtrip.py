@@ -51,6 +51,7 @@ json.dump(got, open(output, "w"))
 """
 
 
+@pytest.mark.slow  # a 6 s `lubrig rig` run, then its replay
 def test_recorded_run_replayed_into_analysis_matches_offline(procs, tmp_path: Path) -> None:
     run = tmp_path / "run"
     res = procs.run_module(

@@ -6,6 +6,7 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+import pytest
 from matplotlib.image import imread
 from mcap.reader import make_reader
 from rosbags.rosbag2 import Reader
@@ -30,6 +31,7 @@ def _counts_mcap(bag: Path) -> Counter:
         return Counter(channel.topic for _s, channel, _m in reader.iter_messages())
 
 
+@pytest.mark.slow  # a whole `lubrig rig` run with recorder and report
 def test_rig_records_and_reports_case1(procs, tmp_path: Path) -> None:
     out = tmp_path / "run"
     res = procs.run_module(
