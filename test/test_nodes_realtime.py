@@ -49,8 +49,8 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     procs.node("belt_drive", mode="realtime")
     procs.node("analysis", window=256, n_scales=16, publish_period=0.2)
     state, band = f"{NS}/state", f"{NS}/band_velocity"
-    assert probe.wait_for_count(state, 1000, 60), procs.logs()
-    assert probe.wait_for_count(band, 500, 30), procs.logs()
+    assert probe.wait_for_count(state, 1000, 180), procs.logs()
+    assert probe.wait_for_count(band, 500, 60), procs.logs()
     elapsed = time.monotonic() - started
     states = list(probe.messages[state])
     # one state per 1 ms of rig time, in order: stamps on the 1 ms grid, strictly increasing
@@ -120,8 +120,8 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     assert reply.success
     # resume: states flow again, rig time going on from where it stood, in order
     assert probe.wait_for(
-        lambda: sum(_stamp(m) > paused_at for m in list(probe.messages[state])) >= 400, 20
-    )
+        lambda: sum(_stamp(m) > paused_at for m in list(probe.messages[state])) >= 400, 30
+    ), (paused_at, [_stamp(m) for m in probe.messages[state][-5:]], _timing_reports(probe)[-1:])
     stamps = [_stamp(m) for m in probe.messages[state]]
     assert all(a < b for a, b in itertools.pairwise(stamps)), "states out of order"
     # reset: rig time back to 0
