@@ -3,13 +3,14 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test lint typecheck bench
+.PHONY: setup run test test-fast lint typecheck bench
 
-$(STAMP): requirements.txt setup.py
+$(STAMP): requirements.txt setup.py test/support/pyproject.toml
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -r requirements.txt
 	$(PY) -m pip install -q --no-deps -e .
+	$(PY) -m pip install -q --no-deps -e test/support  # lubrig_testkit: helpers of test/ and bench/
 	touch $(STAMP)
 
 # lubrig_interfaces (ROS 2 interface package, ament_cmake + rosidl): configured, built and installed
@@ -42,8 +43,13 @@ setup: $(STAMP) $(IFACE_STAMP)
 run: setup
 	$(VENV)/bin/lubrig rig --case 1 --duration 10 --bag runs/latest
 
+# The whole suite (ROS node processes over DDS included); the README's test command.
 test: setup
-	$(PY) -m pytest -q test
+	$(PY) -m pytest -q $(PYTEST_ARGS) test
+
+# The ROS-free, quick tier: no node processes, no DDS, no long runs (see test/conftest.py).
+test-fast: setup
+	$(PY) -m pytest -q -m "not ros and not slow" $(PYTEST_ARGS) test
 
 lint: setup
 	$(VENV)/bin/ruff check lubrig_ros test bench
@@ -59,3 +65,4 @@ bench: setup
 	$(PY) bench/bench_recorder.py --seconds 10 --rate 1000
 	$(PY) bench/bench_sweep.py --points 16 --duration 20 --workers 1 2
 	$(PY) bench/bench_realtime.py --duration 60
+	$(PY) bench/bench_replay.py

@@ -7,24 +7,23 @@ figures are the plant's own diagnostics (deadline misses: ticks finished more th
 after their deadline; latency: band message receive time → state publish time inside the plant).
 Sim: plant + belt_drive + analysis for --sim-duration s of rig time of --case; rig seconds per
 wall second (first band sample → run_complete) next to core.run.simulate on the same config.
-Runs on its own random ROS_DOMAIN_ID, discovery on localhost.
+Runs on its own ROS_DOMAIN_ID (leased like a test's), discovery on localhost; the process
+harness is the tests' one (lubrig_testkit, installed by `make setup`).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import random
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
 from diagnostic_msgs.msg import DiagnosticArray
+from lubrig_testkit.harness import DomainLease, Probe, Processes, ros_env
 from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool
-from test_nodes_support import Probe, Procs
 
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
@@ -39,15 +38,15 @@ def _status(array: DiagnosticArray, name: str) -> dict[str, str]:
 
 
 def bench_realtime(duration: float, tmp: Path) -> dict[str, str]:
-    domain = random.randint(100, 230)
-    probe, procs = Probe(domain), Procs(domain, tmp)
+    lease = DomainLease()
+    probe, procs = Probe(lease.domain), Processes(ros_env(lease.domain), tmp / "realtime")
     try:
         probe.subscribe("/diagnostics", DiagnosticArray)
-        procs.start("plant", mode="realtime")
-        procs.start("belt_drive", mode="realtime")
-        procs.start("analysis")
+        procs.node("plant", mode="realtime")
+        procs.node("belt_drive", mode="realtime")
+        procs.node("analysis")
         timing = f"{common.DEFAULT_NAMESPACE}/state"
-        probe.subscribe(timing, __import__("sensor_msgs.msg", fromlist=["JointState"]).JointState)
+        probe.subscribe(timing, JointState)
         if not probe.wait_for(lambda: probe.messages[timing], 30):
             raise RuntimeError("plant did not start:\n" + procs.log("plant"))
 
@@ -81,20 +80,21 @@ def bench_realtime(duration: float, tmp: Path) -> dict[str, str]:
         values["probe_state_messages"] = str(len(probe.messages[timing]))
         return values
     finally:
-        procs.stop()
+        procs.stop_all()
         probe.close()
+        lease.close()
 
 
 def bench_sim(case: int, rig_seconds: float, tmp: Path) -> tuple[float, float]:
-    domain = random.randint(100, 230)
-    probe, procs = Probe(domain), Procs(domain, tmp)
+    lease = DomainLease()
+    probe, procs = Probe(lease.domain), Processes(ros_env(lease.domain), tmp / "sim")
     ns = common.DEFAULT_NAMESPACE
     try:
         probe.subscribe("/clock", Clock)
         probe.subscribe(f"{ns}/run_complete", Bool, common.LATCHED_QOS)
         for name in ("plant", "belt_drive"):
-            procs.start(name, case=case, duration=rig_seconds)
-        procs.start("analysis", case=case)
+            procs.node(name, case=case, duration=rig_seconds)
+        procs.node("analysis", case=case)
         if not probe.wait_for(
             lambda: any(m.data for m in probe.messages[f"{ns}/run_complete"]), 60 + 5 * rig_seconds
         ):
@@ -113,8 +113,9 @@ def bench_sim(case: int, rig_seconds: float, tmp: Path) -> tuple[float, float]:
         )
         node_rate = rig_seconds / (done - clock_times[0])
     finally:
-        procs.stop()
+        procs.stop_all()
         probe.close()
+        lease.close()
     config = load_case(case).with_overrides(duration=rig_seconds)
     start = time.perf_counter()
     simulate(config)

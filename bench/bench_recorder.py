@@ -5,6 +5,9 @@
 A separate publisher process publishes the six plant topics (displacement, velocity,
 friction_coefficient, state, band_velocity, /clock) at --rate samples/s; the recorder (separate
 process, real DDS) records them; the bag is then read back with rosbags and counted per topic.
+The publisher is the tests' synthetic source, paced on the wall clock without flow control
+(``python -m lubrig_testkit.synthetic publish --rate R``; lubrig_testkit is installed by
+`make setup`), so what the recorder cannot keep up with is lost and counted here.
 """
 
 from __future__ import annotations
@@ -18,8 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))
-from ros_harness import ros_env, run_module, start_module
+from lubrig_testkit.harness import DomainLease, Processes, ros_env
 
 from lubrig_ros.bag import check_bag
 
@@ -32,19 +34,21 @@ def main() -> int:
     args = p.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="bench_recorder_"))
     bag = tmp / "bag"
-    env = ros_env()
     samples = round(args.seconds * args.rate)
-    with start_module(
-        "lubrig_ros.nodes.recorder", "-o", str(bag), "--workers", str(args.workers), env=env
-    ) as rec:
-        rec.wait_for_output("recording", timeout=60)
-        t0 = time.perf_counter()
-        pub = run_module(
-            "lubrig_ros.bag.synthetic", "publish", "--rate", str(args.rate), "--samples",
-            str(samples), env=env, timeout=args.seconds * 3 + 60,
-        )
-        wall = time.perf_counter() - t0
-        status = rec.stop(signal.SIGINT, timeout=60)
+    with DomainLease() as domain:
+        procs = Processes(ros_env(domain), tmp / "logs")
+        try:
+            rec = procs.module("lubrig_ros.nodes.recorder", "-o", str(bag), "--workers", str(args.workers))
+            rec.wait_for_output("recording", timeout=60)
+            t0 = time.perf_counter()
+            pub = procs.run_module(
+                "lubrig_testkit.synthetic", "publish", "--rate", str(args.rate), "--samples",
+                str(samples), timeout=args.seconds * 3 + 60,
+            )
+            wall = time.perf_counter() - t0
+            status = rec.stop(signal.SIGINT, timeout=60)
+        finally:
+            procs.stop_all()
     if pub.returncode != 0:
         print(pub.stdout, pub.stderr)
         return 1

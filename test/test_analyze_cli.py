@@ -125,6 +125,7 @@ def _peak_bytes(call):
         tracemalloc.stop()
 
 
+@pytest.mark.slow
 def test_long_record_default_fmax_is_decimated_to_the_cap(long_tone):
     """600 s at 1 kHz: the default fmax no longer blocks the cap (was ~190 scales × 6e5 samples)."""
     from lubrig_ros.cli.analyze import MAX_POWER_POINTS

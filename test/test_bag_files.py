@@ -1,4 +1,8 @@
-"""Bag files without ROS: truncation, corruption, repair, clear errors from info/replay."""
+"""Bag files without ROS: truncation, corruption, repair, clear errors from info/replay.
+
+`bag info` of a good bag and the replay node run as real processes; the other `lubrig` calls use
+the same main() in-process (lubrig_testkit.cli), which is cheaper.
+"""
 
 from __future__ import annotations
 
@@ -9,9 +13,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from lubrig_testkit.cli import lubrig as _cli
+from lubrig_testkit.crosscheck import read_mcap, read_rosbags
 
 from lubrig_ros.bag import BagError, BagWriter, check_bag, repair_bag
-from lubrig_ros.bag.crosscheck import read_mcap, read_rosbags
 
 N = 3000
 
@@ -31,7 +36,7 @@ def _write(path: Path, finalize: bool = True) -> BagWriter:
     return w
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+def _cli_process(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [sys.executable, "-m", "lubrig_ros.cli.main", *args], capture_output=True, text=True,
         timeout=60, check=False,
@@ -55,7 +60,7 @@ def bag(tmp_path: Path) -> Path:
 def test_finalized_bag_reads_back_everywhere(bag: Path) -> None:
     assert read_rosbags(bag)["/lubrig/displacement"] == [float(k) for k in range(N)]
     assert read_mcap(bag)["/lubrig/displacement"] == [float(k) for k in range(N)]
-    res = _cli("bag", "info", str(bag))
+    res = _cli_process("bag", "info", str(bag))
     assert res.returncode == 0 and "/lubrig/displacement" in res.stdout and str(N) in res.stdout
 
 

@@ -1,4 +1,8 @@
-"""`lubrig friction` / `lubrig stability` run as real processes, and the figures they draw."""
+"""`lubrig friction` / `lubrig stability`, and the figures they draw.
+
+One test runs the real console script (same output as in-process, one-line errors from a fresh
+interpreter); the others call the same main() in-process (lubrig_testkit.cli), which is cheaper.
+"""
 
 from __future__ import annotations
 
@@ -11,6 +15,7 @@ from pathlib import Path
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
+from lubrig_testkit.cli import lubrig
 
 from lubrig_ros.core.friction import friction_coefficient, friction_minimum, friction_peak
 from lubrig_ros.core.params import RigParameters
@@ -21,7 +26,7 @@ SCRIPT = Path(sys.executable).with_name("lubrig")
 COMMAND = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "lubrig_ros.cli.main"]
 
 
-def lubrig(*args: str) -> subprocess.CompletedProcess[str]:
+def lubrig_process(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
         [*COMMAND, *args], capture_output=True, text=True, timeout=120, check=False
     )
@@ -53,6 +58,18 @@ def assert_png_has_content(path: Path, min_size: tuple[int, int] = (600, 400)) -
 
 
 # --- lubrig friction -------------------------------------------------------------------------
+
+
+def test_friction_and_stability_as_real_processes() -> None:
+    """The console script itself: the in-process answers, and bad values as one stderr line."""
+    for args in (("friction", "--at", "1e-7", "--json"), ("stability", "--zeta", "0.01", "--json")):
+        result = lubrig_process(*args)
+        assert result.returncode == 0, result.stderr
+        assert json.loads(result.stdout) == json.loads(lubrig(*args).stdout)
+    result = lubrig_process("friction", "--at", "1e-7")
+    assert result.returncode == 0 and "6.55305e-03" in result.stdout, result.stderr
+    assert_one_line_error(lubrig_process("friction", "--at", "nan"), "--at", "'nan'", "finite")
+    assert_one_line_error(lubrig_process("stability", "--zeta", "-0.1"), "--zeta", "'-0.1'", ">= 0")
 
 
 def test_friction_json_landmarks_and_points() -> None:

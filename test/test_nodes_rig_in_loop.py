@@ -1,4 +1,9 @@
-"""Rig in the loop: an external 1 kHz band publisher with gaps, NaN and negative spikes."""
+"""Rig in the loop: an external ~1 kHz band publisher with gaps, NaN and negative spikes.
+
+The assertions are on what the plant does with its input (rejects bad values and counts them,
+holds the last good value, reports a gap as stale and recovers), and that it keeps publishing
+states one per millisecond of rig time meanwhile; not on wall-clock rates (bench/bench_realtime.py).
+"""
 
 from __future__ import annotations
 
@@ -6,15 +11,13 @@ import math
 import threading
 import time
 
-import pytest
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
-from test_nodes_support import Probe, Procs, new_domain
 
 from lubrig_ros.nodes import common
 
-pytestmark = pytest.mark.ros
 NS = "/lubrig"
 
 
@@ -25,68 +28,84 @@ def _values(array: DiagnosticArray, name: str) -> dict[str, str]:
     return {}
 
 
-def test_rig_in_loop_bad_input_and_staleness(tmp_path):
-    domain = new_domain()
-    probe = Probe(domain)
-    procs = Procs(domain, tmp_path)
+def _stamps(probe, topic: str, start: int = 0) -> np.ndarray:
+    return np.array([m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+                     for m in list(probe.messages[topic])[start:]])
+
+
+def _on_grid_in_order(stamps: np.ndarray) -> None:
+    steps = stamps * 1000
+    assert np.allclose(steps, np.round(steps), rtol=0, atol=1e-3), steps[:10]
+    assert np.all(np.diff(np.round(steps)) >= 1), "states out of order or repeated"
+
+
+def test_rig_in_loop_bad_input_and_staleness(procs, probe):
+    probe.subscribe(f"{NS}/displacement", Float64)
+    probe.subscribe(f"{NS}/state", JointState)
+    probe.subscribe("/diagnostics", DiagnosticArray)
+    started = time.monotonic()
+    plant = procs.node("plant", mode="rig_in_loop", diagnostics_period=0.25)
+    pub = probe.publisher(f"{NS}/band_velocity", Float64, common.STREAM_QOS)
+    x, state = f"{NS}/displacement", f"{NS}/state"
+    assert probe.wait_for(lambda: len(probe.messages[x]) > 200, 60), procs.logs()
+    assert probe.wait_for(lambda: pub.get_subscription_count() > 0, 30)
+    stop = threading.Event()
+    gap = threading.Event()
+
+    def feed() -> None:
+        k = 0
+        start = time.perf_counter()
+        while not stop.is_set():
+            k += 1
+            while time.perf_counter() < start + k * 1e-3:
+                time.sleep(2e-4)
+            if gap.is_set():
+                continue
+            if k % 97 == 0:
+                value = float("nan")
+            elif k % 101 == 0:
+                value = -5.0  # absurd negative spike
+            elif k % 103 == 0:
+                value = float("-inf")
+            else:
+                value = 1e-7 + 2e-8 * math.sin(k * 1e-3)
+            pub.publish(Float64(data=value))
+
+    diag = probe.messages["/diagnostics"]
+
+    def band() -> dict[str, str]:
+        return _values(diag[-1], "lubrig/plant: band input") if diag else {}
+
+    feeder = threading.Thread(target=feed, daemon=True)
+    feeder.start()
     try:
-        probe.subscribe(f"{NS}/displacement", Float64)
-        probe.subscribe(f"{NS}/state", JointState)
-        probe.subscribe("/diagnostics", DiagnosticArray)
-        procs.start("plant", mode="rig_in_loop", diagnostics_period=0.25)
-        pub = probe.node.create_publisher(Float64, f"{NS}/band_velocity", common.STREAM_QOS)
-        x = f"{NS}/displacement"
-        assert probe.wait_for(lambda: len(probe.messages[x]) > 200, 20), procs.log("plant")
-        assert probe.wait_for(lambda: pub.get_subscription_count() > 0, 10)
-        stop = threading.Event()
-        gap = threading.Event()
-
-        def feed() -> None:
-            k = 0
-            start = time.perf_counter()
-            while not stop.is_set():
-                k += 1
-                while time.perf_counter() < start + k * 1e-3:
-                    time.sleep(2e-4)
-                if gap.is_set():
-                    continue
-                if k % 97 == 0:
-                    value = float("nan")
-                elif k % 101 == 0:
-                    value = -5.0  # absurd negative spike
-                elif k % 103 == 0:
-                    value = float("-inf")
-                else:
-                    value = 1e-7 + 2e-8 * math.sin(k * 1e-3)
-                pub.publish(Float64(data=value))
-
-        feeder = threading.Thread(target=feed, daemon=True)
-        feeder.start()
-        rate, pacing = probe.stamped_rate(f"{NS}/state", 2.0)
-        assert 950 < rate < 1050 and 0.85 < pacing < 1.15, (rate, pacing)
-        diag = probe.messages["/diagnostics"]
-        band = _values(diag[-1], "lubrig/plant: band input")
-        assert int(band["rejected"]) > 20
-        assert band["last_rejected_value"] in ("nan", "-5.0", "-inf")
-        assert band["stale"] == "false"
-        # a gap in the input: the plant keeps its rate, holds the last good value, reports stale
+        # bad values are rejected and counted, the input is live
+        assert probe.wait_for(lambda: int(band().get("rejected", 0)) > 20 and band()["stale"] == "false",
+                              60), band()
+        report = band()
+        assert report["last_rejected_value"] in ("nan", "-5.0", "-inf")
+        # states keep coming, one per 1 ms of rig time, rig time never ahead of the wall clock
+        assert probe.wait_for_more(state, 1000, 30)
+        _on_grid_in_order(_stamps(probe, state))
+        assert _stamps(probe, state)[-1] <= time.monotonic() - started
+        # a gap in the input: the plant keeps publishing, holds the last good value, reports stale
         gap.set()
-        rate, pacing = probe.stamped_rate(f"{NS}/state", 1.5)
-        assert 950 < rate < 1050 and 0.85 < pacing < 1.15, (rate, pacing)
-        band = _values(diag[-1], "lubrig/plant: band input")
-        assert band["stale"] == "true" and "stale" in band["_message"]
-        held = float(band["held_band_velocity_m_s"])
+        assert probe.wait_for(lambda: band()["stale"] == "true", 30), band()
+        report = band()
+        assert "stale" in report["_message"]
+        held = float(report["held_band_velocity_m_s"])
         assert 8e-8 <= held <= 1.2e-7
+        assert probe.wait_for_more(state, 500, 30)
+        _on_grid_in_order(_stamps(probe, state))
+        assert band()["stale"] == "true"  # still in the gap: no input arrived
         gap.clear()
-        time.sleep(0.6)
-        assert _values(diag[-1], "lubrig/plant: band input")["stale"] == "false"
-        stop.set()
-        feeder.join(timeout=2)
-        assert all(math.isfinite(m.data) for m in probe.messages[x])
-        assert procs.procs["plant"].poll() is None  # still alive
-        timing = _values(diag[-1], "lubrig/plant: timing")
-        assert timing["integration_errors"] == "0"
+        assert probe.wait_for(lambda: band()["stale"] == "false", 30), band()
     finally:
-        codes = procs.stop()
-        probe.close()
-    assert codes["plant"] == 0
+        stop.set()
+        feeder.join(timeout=5)
+    assert all(math.isfinite(m.data) for m in probe.messages[x])
+    assert plant.running(), plant.log()  # still alive
+    timing = _values(diag[-1], "lubrig/plant: timing")
+    assert timing["integration_errors"] == "0"
+    codes = procs.stop_all()
+    assert codes["plant"] == 0, plant.log()

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 from matplotlib.image import imread
 
 from lubrig_ros.app.study import STATEMENTS
@@ -16,6 +17,7 @@ from lubrig_ros.cli.paper import committed_scan
 from lubrig_ros.core.params import CONVENTIONS
 
 
+@pytest.mark.slow
 def test_paper_writes_scorecard_and_embeds_every_figure(tmp_path: Path) -> None:
     out = tmp_path / "paper"
     docs = tmp_path / "docs"

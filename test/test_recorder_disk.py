@@ -14,35 +14,32 @@ import signal
 from pathlib import Path
 
 import pytest
-from ros_harness import PYTHON, RosProcess, ros_env, run_module
+from lubrig_testkit.crosscheck import read_mcap, read_rosbags
+from lubrig_testkit.harness import PYTHON
+from lubrig_testkit.synthetic import START_NS
 
 from lubrig_ros.app.contract import plant_topics
 from lubrig_ros.bag import BagError, check_bag, repair_bag
-from lubrig_ros.bag.crosscheck import read_mcap, read_rosbags
-from lubrig_ros.bag.synthetic import START_NS
 
-pytestmark = pytest.mark.ros
 LIMIT = 120_000  # bytes per file; 3,000 samples x 6 topics make ~460 kB of bag
 SAMPLES = 3000
 
 
-class LimitedProcess(RosProcess):
-    """RosProcess whose files may not grow beyond `limit` bytes (write fails with EFBIG)."""
+def _file_size_cap(limit: int):
+    """preexec_fn: the process's files may not grow beyond limit bytes (write fails with EFBIG)."""
 
-    def __init__(self, argv: list[str], env: dict[str, str], limit: int) -> None:
-        def cap() -> None:
-            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
-            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of being killed
+    def cap() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of being killed
 
-        super().__init__(argv, env, preexec_fn=cap)
+    return cap
 
 
 def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def test_file_size_limit_stops_recording_cleanly(tmp_path: Path) -> None:
-    env = ros_env()
+def test_file_size_limit_stops_recording_cleanly(procs, tmp_path: Path) -> None:
     cfg = tmp_path / "run.yaml"
     cfg.write_text("plant:\n  mass_kg: 1.0\n")
     bag = tmp_path / "bag"
@@ -50,15 +47,17 @@ def test_file_size_limit_stops_recording_cleanly(tmp_path: Path) -> None:
         PYTHON, "-m", "lubrig_ros.nodes.recorder",
         "-o", str(bag), "--config", str(cfg), "--flush-interval", "0.2",
     ]
-    with LimitedProcess(argv, env, LIMIT) as rec:
-        rec.wait_for_output("recording", timeout=30)
-        pub = run_module(
-            "lubrig_ros.bag.synthetic", "publish", "--samples", str(SAMPLES), env=env, timeout=60
-        )
-        assert pub.returncode == 0, pub.stdout + pub.stderr
-        published = json.loads(pub.stdout.strip().splitlines()[-1])["published"]
-        # the recorder stops by itself (no signal sent): exit status 1
-        assert rec.wait(timeout=30) == 1, rec.output() + rec.errors()
+    rec = procs.command("recorder", argv, preexec_fn=_file_size_cap(LIMIT))
+    rec.wait_for_output("recording", timeout=90)
+    # flow control: the publisher goes on once the recorder has every sample (or has stopped)
+    pub = procs.run_module(
+        "lubrig_testkit.synthetic", "publish", "--samples", str(SAMPLES), "--flow-control", "100",
+        timeout=180,
+    )
+    assert pub.returncode == 0, pub.stdout + pub.stderr
+    published = json.loads(pub.stdout.strip().splitlines()[-1])["published"]
+    # the recorder stops by itself (no signal sent): exit status 1
+    assert rec.wait(timeout=120) == 1, rec.log()
     errors = rec.errors()
     assert "Traceback" not in errors, errors
     mine = [line for line in errors.splitlines() if line.startswith("recorder:")]

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from collections import Counter
 from pathlib import Path
 
@@ -11,14 +9,11 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 from mcap.reader import make_reader
-from ros_harness import ros_env
 from rosbags.rosbag2 import Reader
 
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
 from lubrig_ros.report import trajectory_from_bag
-
-pytestmark = pytest.mark.ros
 
 PLANT_TOPICS = ("/lubrig/state", "/lubrig/displacement", "/lubrig/velocity", "/lubrig/friction_coefficient")
 
@@ -36,12 +31,11 @@ def _counts_mcap(bag: Path) -> Counter:
         return Counter(channel.topic for _s, channel, _m in reader.iter_messages())
 
 
-def test_rig_records_and_reports_case1(tmp_path: Path) -> None:
+@pytest.mark.slow  # a whole `lubrig rig` run with recorder and report
+def test_rig_records_and_reports_case1(procs, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = subprocess.run(
-        [sys.executable, "-m", "lubrig_ros.cli.main", "rig", "--case", "1", "--duration", "2",
-         "--bag", str(out)],
-        env=ros_env(), capture_output=True, text=True, timeout=90, check=False,
+    res = procs.run_module(
+        "lubrig_ros.cli.main", "rig", "--case", "1", "--duration", "2", "--bag", str(out), timeout=240
     )
     assert res.returncode == 0, res.stdout + res.stderr
     report = out / "report" / "report.md"

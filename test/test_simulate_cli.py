@@ -1,4 +1,8 @@
-"""`lubrig simulate` through the real console script: files, summary, figures, errors."""
+"""`lubrig simulate`: files, summary, figures, errors.
+
+The case-1 run and one bad value go through the real script (`python -m lubrig_ros.cli.main`);
+the other runs call the same main() in-process (lubrig_testkit.cli), which is cheaper.
+"""
 
 import json
 import subprocess
@@ -7,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from lubrig_testkit.cli import lubrig
 from matplotlib.image import imread
 
 from lubrig_ros.core.presets import load_case
@@ -17,14 +22,14 @@ LUBRIG = [sys.executable, "-m", "lubrig_ros.cli.main"]
 HEADER = "time_s,displacement_m,velocity_m_s,friction_coefficient,band_velocity_m_s,relative_velocity_m_s"
 
 
-def lubrig(*args: str) -> subprocess.CompletedProcess:
+def lubrig_process(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([*LUBRIG, *args], capture_output=True, text=True, timeout=120, check=False)
 
 
 @pytest.fixture(scope="module")
 def case1_dir(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("sim") / "case1"
-    res = lubrig("simulate", "--case", "1", "--duration", "4", "--out", str(out))
+    res = lubrig_process("simulate", "--case", "1", "--duration", "4", "--out", str(out))
     assert res.returncode == 0, res.stderr
     return out
 
@@ -112,4 +117,12 @@ def test_bad_values_one_line(args, needle, tmp_path):
     assert res.returncode == 2
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], res.stderr
+    assert not (tmp_path / "x").exists()
+
+
+def test_bad_value_one_line_from_the_real_script(tmp_path):
+    res = lubrig_process("simulate", "--mass", "-0.1", "--out", str(tmp_path / "x"))
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "mass=-0.1" in lines[0], res.stderr
     assert not (tmp_path / "x").exists()

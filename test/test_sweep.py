@@ -42,6 +42,7 @@ def comparable(table):
     return table.drop_columns(list(TIMING))
 
 
+@pytest.mark.slow
 def test_points_equal_direct_core_runs(tmp_path):
     spec = {
         "name": "equal",
@@ -109,6 +110,7 @@ def test_shipped_sweeps_hold_the_study_cases():
     assert v[0] == pytest.approx(1e-9) and v[-1] == pytest.approx(1e-6)
 
 
+@pytest.mark.slow
 def test_kill_mid_sweep_then_resume_computes_each_point_once(tmp_path):
     spec_path = write_spec(tmp_path / "spec.yaml", {
         "name": "killme",

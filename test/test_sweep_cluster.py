@@ -15,11 +15,13 @@ import time
 from pathlib import Path
 
 import pyarrow.parquet as pq
+import pytest
 import yaml
 from distributed import Client
 
 from lubrig_ros.sweep import load_spec, run_sweep
 
+pytestmark = pytest.mark.slow  # a Dask scheduler and worker processes per test
 BIN = Path(sys.executable).parent
 LUBRIG, DASK = BIN / "lubrig", BIN / "dask"
 TIMING = ("simulate_seconds", "point_seconds", "worker", "started_at", "finished_at")

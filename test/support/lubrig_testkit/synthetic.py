@@ -1,11 +1,14 @@
 """Synthetic rig traffic for tests and benchmarks (real rclpy nodes, documented types).
 
-``python -m lubrig_ros.bag.synthetic publish --rate 1000 --samples 3000`` publishes the plant's
+``python -m lubrig_testkit.synthetic publish --rate 1000 --samples 3000`` publishes the plant's
 topics (displacement, velocity, friction_coefficient, state, band_velocity, /clock): sample k
 carries value k (Float64 data, JointState position, /clock = start + k/rate). It waits until
 every topic has a subscriber, then prints one JSON line ``{"published": {topic: count}, ...}``.
+Paced at --rate on the wall clock (a realtime source: a slow subscriber can lose samples), or,
+with ``--flow-control N``, unpaced but waiting after every N samples until every subscriber has
+acknowledged them (reliable delivery; the tests' way to need no assumption about speed).
 
-``python -m lubrig_ros.bag.synthetic listen --topics T... --count N --output F.json`` records the
+``python -m lubrig_testkit.synthetic listen --topics T... --count N --output F.json`` records the
 Float64/Clock/JointState values it receives with receive times and writes them as JSON.
 """
 
@@ -25,6 +28,7 @@ START_NS = 1_000_000_000  # rig time of sample 0
 def publish(args: argparse.Namespace) -> int:
     """Publish args.samples plant samples at args.rate Hz."""
     import rclpy
+    from rclpy.duration import Duration
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
@@ -66,6 +70,12 @@ def publish(args: argparse.Namespace) -> int:
         state.header.stamp = clock.clock
         state.position, state.velocity, state.effort = [float(k)], [0.5 * k], [-float(k)]
         state_pub.publish(state)
+        if args.flow_control:
+            if (k + 1) % args.flow_control == 0 or k + 1 == args.samples:
+                for pub in pubs.values():
+                    while not pub.wait_for_all_acked(Duration(seconds=1)):
+                        pass
+            continue
         ahead = t0 + (k + 1) * period - time.perf_counter()
         if ahead > 0:
             time.sleep(ahead)
@@ -122,12 +132,14 @@ def listen(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: publish | listen."""
-    p = argparse.ArgumentParser(prog="python -m lubrig_ros.bag.synthetic")
+    p = argparse.ArgumentParser(prog="python -m lubrig_testkit.synthetic")
     sub = p.add_subparsers(dest="mode", required=True)
     pp = sub.add_parser("publish")
     pp.add_argument("--namespace", default=DEFAULT_NAMESPACE)
     pp.add_argument("--rate", type=float, default=1000.0)
     pp.add_argument("--samples", type=int, default=3000)
+    pp.add_argument("--flow-control", type=int, default=0, metavar="N",
+                    help="unpaced; after every N samples wait until all subscribers acknowledged them")
     pp.add_argument("--subscribers", type=int, default=1)
     pp.add_argument("--wait-subscribers", type=float, default=20.0)
     pp.add_argument("--settle", type=float, default=0.5)
