@@ -20,9 +20,11 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, fields, replace
+from functools import cache
 from typing import Any, Literal
 
-from ..core.params import CONVENTIONS, FrictionParameters, ParameterError
+from ..core.friction_laws import DEFAULT_LAW, law_named
+from ..core.params import CONVENTIONS, ParameterError
 
 DEFAULT_NAMESPACE = "/lubrig"
 #: Longest namespace ROS 2 accepts (rmw: RMW_NAMESPACE_MAX_NAME_LENGTH; measured with rclpy: 245).
@@ -376,54 +378,96 @@ BAND_VELOCITY_LIMIT = 1e-2
 
 RIG_FIELDS: tuple[str, ...] = ("mass", "natural_frequency", "damping_ratio")
 RIG_UNITS = {"mass": "kg", "natural_frequency": "Hz", "damping_ratio": "1", "normal_force": "N"}
-FRICTION_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(FrictionParameters))
+#: Units of the friction laws' fields (a field not listed here is documented as "SI").
 FRICTION_UNITS = {
+    # junction kinetics (core/params.py FrictionParameters)
     "shear_modulus": "Pa", "interface_thickness": "m", "interpenetration_thickness": "m",
     "yield_distance": "m", "thermal_break_time": "s", "reference_activation_time": "s",
     "reference_velocity": "m/s", "activation_exponent": "1", "reference_viscosity": "Pa·s",
     "shear_thinning_exponent": "1", "contact_area": "m²", "normal_force": "N",
+    # Stribeck (core/stribeck.py StribeckParameters)
+    "static_coefficient": "1", "kinetic_coefficient": "1", "stribeck_velocity": "m/s",
+    "stribeck_exponent": "1", "viscous_coefficient": "s/m", "regularization_velocity": "m/s",
 }
 
-PLANT_PARAMETERS: tuple[NodeParameter, ...] = (
-    *RUN_SELECTION,
-    _p("mode", "string", "sim", "sim | realtime | rig_in_loop", choices=MODES),
-    _p("sample_rate", "double", None, "output rate", unit="Hz", low=0.0, low_open=True,
-       from_config="simulation.sample_rate"),
-    _p("duration", "double", None, "run length in rig time (sim mode)", unit="s", low=0.0,
-       low_open=True, from_config="simulation.duration"),
-    _p("rtol", "double", None, "integrator relative tolerance; applied at the next reset",
-       low=1e-13, high=1e-2, read_only=False, from_config="simulation.rtol"),
-    _p("initial_perturbation", "double", None, "x(0) = (1 + this) x0; applied at the next reset",
-       read_only=False, from_config="simulation.initial_perturbation"),
-    _p("convention", "string", None,
-       "physical | paper | hertz (γ = 1, 1/ω0, 1/f0); empty: the run configuration's; applied at "
-       "the next reset", choices=("", *CONVENTIONS), read_only=False, from_config="rig.convention"),
-    _p("velocity_coupling", "double", None,
-       "explicit γ in v_rel = v_band − γ ẋ, overriding the convention; 0: the convention's γ; "
-       "applied at the next reset", low=0.0, read_only=False, from_config="rig.velocity_coupling"),
-    *(
-        _p(f"rig.{n}", "double", None, f"rig {n}; applied at the next reset", unit=RIG_UNITS[n],
-           read_only=False, from_config=f"rig.{n}")
-        for n in RIG_FIELDS
-    ),
-    _p("rig.normal_force", "double", None, "normal force N; applied at the next reset", unit="N",
-       read_only=False, from_config="rig.friction.normal_force"),
-    *(
+
+def friction_fields(law: str = DEFAULT_LAW) -> tuple[str, ...]:
+    """The fields of friction law `law`'s parameter dataclass (core.friction_laws registry), in order.
+
+    ParameterError naming the valid laws for an unknown one.
+    """
+    return tuple(f.name for f in fields(law_named(law).parameters))
+
+
+#: The default (junction-kinetics) law's fields.
+FRICTION_FIELDS: tuple[str, ...] = friction_fields(DEFAULT_LAW)
+
+FRICTION_LAW = _p(
+    "friction.law", "string", None,
+    "friction law of the run (core.friction_laws: junction_kinetics, stribeck or a registered "
+    "one); the plant's friction.<field> parameters are this law's fields",
+    from_config="rig.friction.law",
+)
+
+
+def friction_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
+    """The plant's `friction.<field>` parameters of law `law` (normal_force is rig.normal_force)."""
+    return tuple(
         _p(f"friction.{n}", "double", None, f"friction law {n}; applied at the next reset",
            unit=FRICTION_UNITS.get(n, "SI"), read_only=False, from_config=f"rig.friction.{n}")
-        for n in FRICTION_FIELDS
+        for n in friction_fields(law)
         if n != "normal_force"
-    ),
-    _p("band_velocity_limit", "double", BAND_VELOCITY_LIMIT,
-       "largest accepted |v_band|; NaN/inf and larger values are rejected", unit="m/s", low=0.0,
-       low_open=True),
-    _p("stale_timeout", "double", 0.05, "time without good band input before the input is stale",
-       unit="s", low=0.0, low_open=True),
-    WAIT_FOR_SUBSCRIBER,
-    REALTIME_PRIORITY,
-    _p("diagnostics_period", "double", 1.0, "time between /diagnostics", unit="s", low=0.0,
-       low_open=True),
-)
+    )
+
+
+@cache
+def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
+    """Every parameter of a plant whose run uses friction law `law`.
+
+    The friction parameters derive from the law's parameter dataclass, so a run configuration
+    with `friction: {law: stribeck, ...}` gets `friction.static_coefficient` etc.
+    """
+    return (
+        *RUN_SELECTION,
+        _p("mode", "string", "sim", "sim | realtime | rig_in_loop", choices=MODES),
+        _p("sample_rate", "double", None, "output rate", unit="Hz", low=0.0, low_open=True,
+           from_config="simulation.sample_rate"),
+        _p("duration", "double", None, "run length in rig time (sim mode)", unit="s", low=0.0,
+           low_open=True, from_config="simulation.duration"),
+        _p("rtol", "double", None, "integrator relative tolerance; applied at the next reset",
+           low=1e-13, high=1e-2, read_only=False, from_config="simulation.rtol"),
+        _p("initial_perturbation", "double", None, "x(0) = (1 + this) x0; applied at the next reset",
+           read_only=False, from_config="simulation.initial_perturbation"),
+        _p("convention", "string", None,
+           "physical | paper | hertz (γ = 1, 1/ω0, 1/f0); empty: the run configuration's; applied "
+           "at the next reset", choices=("", *CONVENTIONS), read_only=False,
+           from_config="rig.convention"),
+        _p("velocity_coupling", "double", None,
+           "explicit γ in v_rel = v_band − γ ẋ, overriding the convention; 0: the convention's γ; "
+           "applied at the next reset", low=0.0, read_only=False, from_config="rig.velocity_coupling"),
+        *(
+            _p(f"rig.{n}", "double", None, f"rig {n}; applied at the next reset", unit=RIG_UNITS[n],
+               read_only=False, from_config=f"rig.{n}")
+            for n in RIG_FIELDS
+        ),
+        _p("rig.normal_force", "double", None, "normal force N; applied at the next reset", unit="N",
+           read_only=False, from_config="rig.friction.normal_force"),
+        FRICTION_LAW,
+        *friction_parameters(law),
+        _p("band_velocity_limit", "double", BAND_VELOCITY_LIMIT,
+           "largest accepted |v_band|; NaN/inf and larger values are rejected", unit="m/s", low=0.0,
+           low_open=True),
+        _p("stale_timeout", "double", 0.05, "time without good band input before the input is stale",
+           unit="s", low=0.0, low_open=True),
+        WAIT_FOR_SUBSCRIBER,
+        REALTIME_PRIORITY,
+        _p("diagnostics_period", "double", 1.0, "time between /diagnostics", unit="s", low=0.0,
+           low_open=True),
+    )
+
+
+#: The plant's parameters with the default (junction-kinetics) law (plant_parameters(law) for another).
+PLANT_PARAMETERS: tuple[NodeParameter, ...] = plant_parameters(DEFAULT_LAW)
 
 BELT_DRIVE_PARAMETERS: tuple[NodeParameter, ...] = (
     *RUN_SELECTION,

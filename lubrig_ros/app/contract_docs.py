@@ -87,6 +87,25 @@ def parameter_table(node: str) -> str:
     return "\n".join(rows)
 
 
+def friction_law_table() -> str:
+    """The plant's friction.<field> parameters of every built-in friction law, with defaults."""
+    from dataclasses import fields
+
+    from ..core.friction_laws import BUILTIN_LAWS, law_named
+
+    rows = ["| `friction.law` | `friction.<field>` parameters (default) |", "|---|---|"]
+    for law in BUILTIN_LAWS:
+        kind = law_named(law).parameters
+        defaults = {f.name: f.default for f in fields(kind)}
+        cells = []
+        for p in contract.friction_parameters(law):
+            field = p.name.removeprefix("friction.")
+            unit = f" {p.unit}" if p.unit and p.unit not in ("1", "SI") else ""
+            cells.append(f"`{p.name}` ({defaults[field]:g}{unit})")
+        rows.append(f"| `{law}` | {_cell(', '.join(cells))} |")
+    return "\n".join(rows)
+
+
 def _parameters(node: str) -> Callable[[], str]:
     return lambda: parameter_table(node)
 
@@ -97,12 +116,15 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "readme-topics": readme_topic_table,
     "services": service_table,
     **{f"parameters-{node}": _parameters(node) for node in contract.NODE_PARAMETERS},
+    "friction-laws": friction_law_table,
 }
 #: Documents (relative to the repository root) and the blocks each must hold.
 DOCUMENTS: dict[str, tuple[str, ...]] = {
     "README.md": ("readme-topics",),
     "docs/topics.md": ("topics", "services"),
-    "docs/nodes.md": ("services", *(f"parameters-{n}" for n in contract.NODE_PARAMETERS)),
+    "docs/nodes.md": (
+        "services", *(f"parameters-{n}" for n in contract.NODE_PARAMETERS), "friction-laws"
+    ),
 }
 _BLOCK = re.compile(r"(<!-- contract:([a-z_-]+) -->\n)(.*?)(<!-- /contract:\2 -->)", re.S)
 

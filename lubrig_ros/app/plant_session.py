@@ -30,25 +30,39 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..core.friction_laws import law_named
 from ..core.integrator import RigIntegrator, Trajectory
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
 from ..core.run import integrator_for
-from .contract import FRICTION_FIELDS, MODES, PLANT_PARAMETERS, RIG_FIELDS
+from .contract import MODES, RIG_FIELDS, friction_fields, plant_parameters
 from .diagnostics import Status
 from .timing import DeadlineLoop, LatencyHistogram
 
-#: Plant parameters that rebuild the run configuration (contract entries with `from_config`).
-CONFIG_PARAMETERS: tuple[str, ...] = tuple(p.name for p in PLANT_PARAMETERS if p.from_config)
-#: Of these, the ones that may change at run time (applied at the next reset).
-RUNTIME_PARAMETERS: frozenset[str] = frozenset(
-    p.name for p in PLANT_PARAMETERS if p.from_config and not p.read_only
-)
+
+def law_of(config: RunConfig) -> str:
+    """Name of the friction law of a run configuration (core.friction_laws registry)."""
+    return str(type(config.rig.friction).law)
+
+
+def config_parameters(law: str) -> tuple[str, ...]:
+    """Plant parameters that rebuild the run configuration (contract entries with `from_config`)."""
+    return tuple(p.name for p in plant_parameters(law) if p.from_config)
+
+
+def runtime_parameters(law: str) -> frozenset[str]:
+    """Of these, the ones that may change at run time (applied at the next reset)."""
+    return frozenset(p.name for p in plant_parameters(law) if p.from_config and not p.read_only)
+
+
+#: config_parameters / runtime_parameters of the default (junction-kinetics) law.
+CONFIG_PARAMETERS: tuple[str, ...] = config_parameters("junction_kinetics")
+RUNTIME_PARAMETERS: frozenset[str] = runtime_parameters("junction_kinetics")
 HARDWARE_ID = "lubrig_plant"
 #: Share of deadline misses above which the timing status is WARN.
 MISS_SHARE_WARN = 1e-3
@@ -89,11 +103,21 @@ def _field(data: Mapping[str, Any], path: str) -> Any:
     return data
 
 
-def parameter_defaults(base: RunConfig) -> dict[str, Any]:
-    """Default values of the configuration parameters (CONFIG_PARAMETERS) from a run configuration."""
+def parameter_defaults(base: RunConfig, law: str | None = None) -> dict[str, Any]:
+    """Default values of the configuration parameters (config_parameters(law)) from a run configuration.
+
+    `law` None: the base's friction law. Another law than the base's takes its own parameter
+    defaults (its dataclass's), with the base's normal force. ParameterError for an unknown law.
+    """
+    law = law or law_of(base)
     data = base.to_dict()
+    if law == law_of(base):
+        friction = asdict(base.rig.friction)
+    else:
+        friction = asdict(replace(law_named(law).parameters(), normal_force=base.rig.normal_force))
+    data["rig"]["friction"] = {"law": law, **friction}
     out: dict[str, Any] = {}
-    for p in PLANT_PARAMETERS:
+    for p in plant_parameters(law):
         if p.from_config:
             value = _field(data, p.from_config)
             if value is None and p.name == "velocity_coupling":
@@ -105,11 +129,14 @@ def parameter_defaults(base: RunConfig) -> dict[str, Any]:
 def config_from(base: RunConfig, values: Mapping[str, Any]) -> RunConfig:
     """The run configuration of `base` with the plant's configuration parameters applied.
 
-    `values` maps parameter names (CONFIG_PARAMETERS) to values; missing ones keep base's.
-    An empty `convention` means the base configuration's; `velocity_coupling` 0 means the
-    convention's γ, > 0 an explicit γ overriding it. ParameterError for invalid values.
+    `values` maps parameter names (config_parameters of the law) to values; missing ones keep
+    base's. `friction.law` (default: the base's law) selects the friction law whose
+    `friction.<field>` values apply; fields not given take the base's values (same law) or the
+    law's defaults. An empty `convention` means the base configuration's; `velocity_coupling`
+    0 means the convention's γ, > 0 an explicit γ overriding it. ParameterError for invalid values.
     """
-    defaults = parameter_defaults(base)
+    law = values.get("friction.law") or law_of(base)
+    defaults = parameter_defaults(base, law)
 
     def value(name: str) -> Any:
         return values[name] if name in values else defaults[name]
@@ -119,8 +146,9 @@ def config_from(base: RunConfig, values: Mapping[str, Any]) -> RunConfig:
     data["rig"]["convention"] = value("convention") or base.rig.convention
     gamma = value("velocity_coupling")  # 0: the convention's γ
     data["rig"]["velocity_coupling"] = float(gamma) if gamma else None
-    friction = {n: value(f"friction.{n}") for n in FRICTION_FIELDS if n != "normal_force"}
+    friction = {n: value(f"friction.{n}") for n in friction_fields(law) if n != "normal_force"}
     friction["normal_force"] = value("rig.normal_force")
+    friction["law"] = law
     data["rig"]["friction"] = friction
     data["simulation"].update(
         {n: value(n) for n in ("duration", "sample_rate", "rtol", "initial_perturbation")}
@@ -194,9 +222,10 @@ class PlantSession:
         """Why a parameter update (applied at the next reset) is invalid, or None when it is fine.
 
         `current` holds the present values of the configuration parameters; only names in
-        RUNTIME_PARAMETERS are considered (others are not configuration).
+        runtime_parameters(law of the running configuration) are considered (others are not
+        configuration).
         """
-        relevant = {k: v for k, v in updates.items() if k in RUNTIME_PARAMETERS}
+        relevant = {k: v for k, v in updates.items() if k in runtime_parameters(law_of(self.config))}
         if not relevant:
             return None
         try:

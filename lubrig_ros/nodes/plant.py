@@ -20,16 +20,16 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, String
 from std_srvs.srv import SetBool, Trigger
 
-from ..app import cdr
-from ..app.contract import PLANT_PARAMETERS
+from ..app import cdr, contract
 from ..app.plant_session import (
-    CONFIG_PARAMETERS,
-    RUNTIME_PARAMETERS,
     PlantSample,
     PlantSession,
     PlantSettings,
     config_from,
+    config_parameters,
+    law_of,
     parameter_defaults,
+    runtime_parameters,
 )
 from ..core.params import ParameterError
 from . import common
@@ -43,7 +43,13 @@ class Plant(Node):
         super().__init__("plant")
         base = common.declare_run_selection(self)
         ns = self.get_parameter("topic_namespace").value
-        values = common.declare_parameters(self, PLANT_PARAMETERS, parameter_defaults(base))
+        # the friction law first: its parameter dataclass decides the friction.<field> parameters
+        law = common.declare(self, contract.FRICTION_LAW, law_of(base))
+        self.config_names = config_parameters(law)
+        self.runtime_names = runtime_parameters(law)
+        values = common.declare_parameters(
+            self, contract.plant_parameters(law), parameter_defaults(base, law)
+        )
         self.mode = values["mode"]
         self.wait_for_subscriber = values["wait_for_subscriber"]
         settings = PlantSettings(values["mode"], values["band_velocity_limit"], values["stale_timeout"])
@@ -83,7 +89,7 @@ class Plant(Node):
         config = self.session.config
         self.get_logger().info(
             f"plant: mode={self.mode}, {config.sample_rate:g} Hz, {config.rig.coupling_label}, "
-            f"{config.samples} samples per run (sim)"
+            f"friction law {law}, {config.samples} samples per run (sim)"
         )
 
     def _on_band_raw(self, data: bytes) -> None:
@@ -93,7 +99,7 @@ class Plant(Node):
         getattr(self.get_logger(), level)(text)
 
     def _config_values(self) -> dict[str, object]:
-        return {name: self.get_parameter(name).value for name in CONFIG_PARAMETERS}
+        return {name: self.get_parameter(name).value for name in self.config_names}
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """Validate rig/friction/integration updates; they take effect at the next reset."""
@@ -101,7 +107,7 @@ class Plant(Node):
         reason = self.session.check_update(self._config_values(), updates)
         if reason is not None:
             return SetParametersResult(successful=False, reason=reason)
-        if set(updates) & RUNTIME_PARAMETERS:
+        if set(updates) & self.runtime_names:
             self.get_logger().info(f"parameters {sorted(updates)} accepted; applied at the next reset")
         return SetParametersResult(successful=True)
 
