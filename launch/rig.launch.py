@@ -1,10 +1,14 @@
-"""ros2 launch lubrig_ros rig.launch.py [case:=N | config_file:=FILE] [mode:=sim|realtime] [duration:=S].
+"""ros2 launch lubrig_ros rig.launch.py [case:=N | config_file:=FILE] [mode:=sim|realtime] [duration:=S]
+[namespace:=NS].
 
 For ROS 2 installations with launch_ros (not installable from pip here: `lubrig rig` is the
 launcher that works everywhere). Like `lubrig rig`, it resolves the run once (case | config file |
 default, plus duration and convention), writes it to RUN_DIR/run_config.yaml (`run_dir:=DIR`,
 default ~/.ros/lubrig/<time>) and hands that file to belt_drive, plant and analysis as their
-`config_file` parameter, with config/nodes.yaml for the node settings.
+`config_file` parameter, with config/nodes.yaml for the node settings. The nodes run in
+`namespace` (default /lubrig, launch_ros's `namespace=`: the nodes' relative topic and service
+names resolve under it; a relative value such as `rig2` goes under an enclosing
+PushRosNamespace).
 """
 
 from __future__ import annotations
@@ -12,6 +16,8 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
+
+from lubrig_ros.app.contract import DEFAULT_NAMESPACE
 
 try:
     from ament_index_python.packages import get_package_share_directory
@@ -30,6 +36,7 @@ ARGUMENTS = {
     "duration": "10.0",
     "convention": "",
     "run_dir": "",
+    "namespace": DEFAULT_NAMESPACE,
 }
 
 
@@ -59,6 +66,7 @@ def _nodes(context, *_args, **_kwargs):
             package="lubrig_ros",
             executable=name,
             name=name,
+            namespace=value["namespace"],
             parameters=[params_file, params],
             output="screen",
         )

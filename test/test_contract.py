@@ -153,7 +153,8 @@ def test_nodes_yaml_sets_only_contract_parameters_with_valid_values():
     assert data, "config/nodes.yaml is empty"
     for key, section in data.items():
         params = section["ros__parameters"]
-        nodes = list(contract.NODE_PARAMETERS) if key == "/**" else [key]
+        # keys: /** (every node) or /**/<node> (that node in any namespace)
+        nodes = list(contract.NODE_PARAMETERS) if key == "/**" else [key.removeprefix("/**/")]
         assert set(nodes) <= set(contract.NODE_PARAMETERS), key
         for node in nodes:
             for name, value in params.items():

@@ -7,13 +7,14 @@ from rcl_interfaces.srv import DescribeParameters, ListParameters
 from lubrig_ros.app import contract
 
 STANDARD = {"use_sim_time", "start_type_description_service"}  # rclpy's own
+NS = contract.DEFAULT_NAMESPACE  # the nodes' namespace when started without -r __ns:=...
 
 
 def test_nodes_declare_the_contract_parameters(procs, probe):
     for node in contract.NODE_PARAMETERS:
         procs.node(node, case=1)
     for node, specs in contract.NODE_PARAMETERS.items():
-        listed = probe.call(ListParameters, f"/{node}/list_parameters", ListParameters.Request(), 120)
+        listed = probe.call(ListParameters, f"{NS}/{node}/list_parameters", ListParameters.Request(), 120)
         names = set(listed.result.names) - STANDARD
         expected = {p.name for p in specs if "<" not in p.name}
         if node == "belt_drive":  # profile.<field>: one parameter per profile field (core)
@@ -22,7 +23,7 @@ def test_nodes_declare_the_contract_parameters(procs, probe):
         assert names == expected, (node, sorted(names ^ expected))
         described = probe.call(
             DescribeParameters,
-            f"/{node}/describe_parameters",
+            f"{NS}/{node}/describe_parameters",
             DescribeParameters.Request(names=sorted(expected)),
         )
         for d in described.descriptors:

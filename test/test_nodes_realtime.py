@@ -82,18 +82,18 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     assert probe.messages[f"{NS}/linear_zone"][-1].data == 2  # 1e-7 m/s is zone 2
 
     # a valid parameter update changes the running profile
-    result = probe.set_parameter("belt_drive", "profile.velocity", 3e-7)
+    result = probe.set_parameter("lubrig/belt_drive", "profile.velocity", 3e-7)
     assert result.successful, result.reason
     assert probe.wait_for(lambda: probe.messages[band][-1].data == 3e-7, 10)
     # invalid updates are rejected with their reason; the profile is untouched
-    result = probe.set_parameter("belt_drive", "profile.kind", "sawtooth")
+    result = probe.set_parameter("lubrig/belt_drive", "profile.kind", "sawtooth")
     assert not result.successful and "sawtooth" in result.reason and "constant" in result.reason
-    result = probe.set_parameter("belt_drive", "profile.velocity", float("nan"))
+    result = probe.set_parameter("lubrig/belt_drive", "profile.velocity", float("nan"))
     assert not result.successful and "finite" in result.reason
     assert probe.wait_for_more(band, 200, 10)  # samples published after the rejected updates
     assert probe.messages[band][-1].data == 3e-7
     # switch kind: a sine with its defaults
-    result = probe.set_parameter("belt_drive", "profile.kind", "sine")
+    result = probe.set_parameter("lubrig/belt_drive", "profile.kind", "sine")
     assert result.successful, result.reason
     assert probe.wait_for(lambda: probe.messages[band][-1].data != 3e-7, 10)
 

@@ -5,14 +5,15 @@ services and parameters from it, the recorder and replay take their topic list a
 and the tables in README.md, docs/topics.md and docs/nodes.md are generated from it
 (lubrig_ros/app/contract_docs.py; test/test_contract.py keeps them in sync).
 
-Names are stored RELATIVE (``band_velocity``, ``plant/reset``) and resolved against a namespace
-(today's default ``/lubrig``) by `resolve`; only the ROS-wide standard topics ``/clock`` and
-``/diagnostics`` are absolute. Message and service types are strings ("std_msgs/msg/Float64"),
-QoS is plain data (`QoS`); the ROS adapters turn them into rclpy objects (nodes/interfaces.py).
-
-The nodes create every publisher, subscription and service through nodes/interfaces.py, the one
-place a contract name is resolved for rclpy: handing rclpy the relative name instead (so that
-`__ns`, `-r name:=...` and launch remappings apply) is a change there, not in every node.
+Names are stored RELATIVE (``band_velocity``, ``plant/reset``); only the ROS-wide standard topics
+``/clock`` and ``/diagnostics`` are absolute. The nodes hand rclpy the relative names
+(nodes/interfaces.py), so rcl resolves them against the node's namespace and applies remap rules
+(``-r __ns:=/rig2``, ``-r band_velocity:=/my/band``, launch namespaces and remappings). The
+default namespace ``/lubrig`` (DEFAULT_NAMESPACE) is where the launchers put the nodes, and the
+nodes' own default when started without ``__ns``. `resolve` computes the absolute name for
+processes that are not in the rig's namespace (recorder, replay, launcher, tests). Message and
+service types are strings ("std_msgs/msg/Float64"), QoS is plain data (`QoS`); the ROS adapters
+turn them into rclpy objects (nodes/interfaces.py).
 """
 
 from __future__ import annotations
@@ -360,7 +361,10 @@ RUN_SELECTION: tuple[NodeParameter, ...] = (
     _p("case", "integer", 0, "study case 1..10 (0: use config_file or the default)"),
     _p("config_file", "string", "",
        "run configuration YAML (the launcher passes the resolved run's file; empty: default)"),
-    _p("topic_namespace", "string", DEFAULT_NAMESPACE, "namespace of all topics"),
+    _p("topic_namespace", "string", "",
+       "deprecated, must stay empty: topics and services follow the node namespace "
+       "(--ros-args -r __ns:=/rig2, launch namespace=); a value other than the node's namespace "
+       "is refused at start"),
 )
 WAIT_FOR_SUBSCRIBER = _p(
     "wait_for_subscriber", "string", "",

@@ -4,7 +4,9 @@ Resolves the run once (case | config file | default, plus --duration / --convent
 it to DIR/run_config.yaml; every node gets that file as its `config_file` parameter (nothing is
 rebuilt from a case number). Starts the recorder (`recorder -o DIR/bag --config
 DIR/run_config.yaml [--use-sim-time]`, sim mode logs rig time) and waits until it is subscribed,
-then belt_drive, plant and analysis on the current ROS_DOMAIN_ID; waits until the plant reports
+then belt_drive, plant and analysis on the current ROS_DOMAIN_ID, all in the rig namespace
+(`--namespace NS`, default /lubrig: the nodes get `-r __ns:=NS`, the recorder `--namespace
+NS`); waits until the plant reports
 the run complete (sim) or the wall duration has passed (realtime), stops the nodes and then the
 recorder with SIGINT (SIGTERM after a grace period) so that the bag is finalized, and finally
 writes the report of the bag into DIR/report (`--no-report` skips it) and prints its location.
@@ -22,6 +24,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..app.contract import DEFAULT_NAMESPACE, validate_namespace
 from ..app.selection import RunSelection
 from ..core.params import CONVENTIONS, ParameterError
 from ..core.presets import RunConfig, config_dir
@@ -85,14 +88,16 @@ def select_config(args: argparse.Namespace) -> RunConfig:
         raise CommandError(str(exc)) from None
 
 
-def _ros_args(params: dict[str, object], params_file: Path) -> list[str]:
-    args = ["--ros-args", "--params-file", str(params_file)]
+def _ros_args(params: dict[str, object], params_file: Path, namespace: str = DEFAULT_NAMESPACE) -> list[str]:
+    args = ["--ros-args", "-r", f"__ns:={namespace}", "--params-file", str(params_file)]
     for key, value in params.items():
         args += ["-p", f"{key}:={value}"]
     return args
 
 
-def _wait_complete(deadline: float, procs: dict[str, subprocess.Popen]) -> bool:
+def _wait_complete(
+    deadline: float, procs: dict[str, subprocess.Popen], namespace: str = DEFAULT_NAMESPACE
+) -> bool:
     """Sim: wait for <ns>/run_complete = true (latched) from the plant."""
     import rclpy
     from rclpy.context import Context
@@ -102,7 +107,7 @@ def _wait_complete(deadline: float, procs: dict[str, subprocess.Popen]) -> bool:
     from ..app import contract
     from ..nodes.interfaces import qos_profile
 
-    spec = contract.topic("run_complete").resolved(contract.DEFAULT_NAMESPACE)
+    spec = contract.topic("run_complete").resolved(namespace)
     context = Context()
     rclpy.init(context=context)
     node = Node("lubrig_rig_launcher", context=context)
@@ -145,9 +150,12 @@ def stop_all(procs: dict[str, subprocess.Popen], grace: float = GRACE_S) -> dict
     return codes
 
 
-def recorder_command(bag_dir: Path, run_config: Path, mode: str) -> list[str]:
-    """The recorder's command line: rig time as log time in sim mode."""
+def recorder_command(
+    bag_dir: Path, run_config: Path, mode: str, namespace: str = DEFAULT_NAMESPACE
+) -> list[str]:
+    """The recorder's command line: the rig's namespace; rig time as log time in sim mode."""
     argv = [_executable("recorder"), "-o", str(bag_dir), "--config", str(run_config)]
+    argv += ["--namespace", namespace]
     return argv + (["--use-sim-time"] if mode == "sim" else [])
 
 
@@ -179,6 +187,11 @@ def _wait_recorder(proc: subprocess.Popen, log: Path, limit: float = RECORDER_RE
 def run(args: argparse.Namespace) -> int:
     """Start, wait, stop, report."""
     config = select_config(args)
+    namespace = getattr(args, "namespace", DEFAULT_NAMESPACE)
+    try:
+        validate_namespace(namespace, "--namespace")
+    except ParameterError as exc:
+        raise CommandError(str(exc)) from None
     mode = args.mode
     bag = Path(args.bag).resolve()
     bag.mkdir(parents=True, exist_ok=True)
@@ -209,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
         if with_recorder:
             with open(logs / "recorder.log", "w") as log:
                 procs["recorder"] = subprocess.Popen(
-                    recorder_command(bag / "bag", run_config, mode),
+                    recorder_command(bag / "bag", run_config, mode, namespace),
                     env=env,
                     stdout=log,
                     stderr=subprocess.STDOUT,
@@ -218,17 +231,20 @@ def run(args: argparse.Namespace) -> int:
         for name in NODES:
             with open(logs / f"{name}.log", "w") as log:
                 procs[name] = subprocess.Popen(
-                    [_executable(name), *_ros_args(per_node[name], params_file)],
+                    [_executable(name), *_ros_args(per_node[name], params_file, namespace)],
                     env=env,
                     stdout=log,
                     stderr=subprocess.STDOUT,
                 )
         domain = env.get("ROS_DOMAIN_ID", "0")
-        print(f"lubrig rig: {config.name} ({mode}, {config.duration:g} s) on ROS_DOMAIN_ID {domain}")
+        print(
+            f"lubrig rig: {config.name} ({mode}, {config.duration:g} s) on ROS_DOMAIN_ID {domain}, "
+            f"namespace {namespace}"
+        )
         start = time.monotonic()
         if mode == "sim":
             limit = args.timeout if args.timeout else max(60.0, 10.0 * config.duration)
-            complete = _wait_complete(start + limit, procs)
+            complete = _wait_complete(start + limit, procs, namespace)
             if not complete:
                 dead = [n for n, p in procs.items() if p.poll() is not None]
                 why = f"process(es) {dead} exited" if dead else f"timeout after {limit:g} s"
@@ -287,6 +303,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     group.add_argument("--case", type=int, metavar="N", help="study case 1..10")
     group.add_argument("--config", metavar="FILE", help="run configuration YAML")
     parser.add_argument("--mode", choices=("sim", "realtime"), default="sim")
+    parser.add_argument(
+        "--namespace", default=DEFAULT_NAMESPACE, metavar="NS",
+        help=f"ROS namespace of the rig's nodes, topics and services (default {DEFAULT_NAMESPACE})",
+    )
     parser.add_argument("--convention", choices=CONVENTIONS, help="override the convention")
     parser.add_argument("--duration", type=_positive, metavar="S", help="run length in s")
     parser.add_argument("--bag", required=True, metavar="DIR", help="output directory")

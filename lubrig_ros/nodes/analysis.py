@@ -31,9 +31,8 @@ class Analysis(Node):
     """Online analysis node (see module docstring)."""
 
     def __init__(self) -> None:
-        super().__init__("analysis")
+        super().__init__("analysis", namespace=common.DEFAULT_NAMESPACE)  # -r __ns:=... overrides
         config = common.declare_run_selection(self)
-        ns = self.get_parameter("topic_namespace").value
         values = common.declare_parameters(self, ANALYSIS_PARAMETERS)
         if values["convention"]:
             config = config.with_overrides(convention=values["convention"])
@@ -41,10 +40,10 @@ class Analysis(Node):
             values["window"], values["n_scales"], values["image_width"], values["max_columns"]
         )
         self.session = AnalysisSession(config, settings)
-        self.pubs = {name: create_publisher(self, ns, name) for name in OUTPUTS}
-        create_subscription(self, ns, "state", self._on_state)
-        create_subscription(self, ns, "band_velocity", lambda m: self.session.band_input(m.data))
-        create_subscription(self, ns, "run_config", self._on_run_config)
+        self.pubs = {name: create_publisher(self, name) for name in OUTPUTS}
+        create_subscription(self, "state", self._on_state)
+        create_subscription(self, "band_velocity", lambda m: self.session.band_input(m.data))
+        create_subscription(self, "run_config", self._on_run_config)
         self.create_timer(values["publish_period"], self._tick)
         self.get_logger().info(f"analysis: window {settings.window} samples, {settings.n_scales} scales")
 

@@ -30,9 +30,8 @@ class BeltDrive(Node):
     """Band velocity source (see module docstring)."""
 
     def __init__(self) -> None:
-        super().__init__("belt_drive")
+        super().__init__("belt_drive", namespace=common.DEFAULT_NAMESPACE)  # -r __ns:=... overrides
         config: RunConfig = common.declare_run_selection(self)
-        ns = self.get_parameter("topic_namespace").value
         specs = [p for p in BELT_DRIVE_PARAMETERS if not p.name.startswith("profile.")]  # below
         values = common.declare_parameters(
             self, specs, {"sample_rate": config.sample_rate, "duration": config.duration}
@@ -65,7 +64,7 @@ class BeltDrive(Node):
         self.add_pre_set_parameters_callback(self._complete_profile_update)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
-        self.publisher = create_publisher(self, ns, "band_velocity")
+        self.publisher = create_publisher(self, "band_velocity")
         self.total = round(self.duration * self.sample_rate)
         self.next_k = 1
         self.plant_k: int | None = None
@@ -73,7 +72,7 @@ class BeltDrive(Node):
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         if self.mode == "sim":
-            create_subscription(self, ns, "/clock", self._on_clock)
+            create_subscription(self, "/clock", self._on_clock)
             self.create_timer(0.05, self._pump)
         else:
             common.enter_realtime(self.realtime_priority, self)

@@ -1,8 +1,8 @@
 """Shared pieces of the lubrig_ros nodes: parameters from the contract, run selection, loops.
 
 Topic names, types, QoS and the node parameters live in app/contract.py (docs/topics.md,
-docs/nodes.md); names there are relative to the `topic_namespace` parameter (default /lubrig),
-except /clock and /diagnostics.
+docs/nodes.md); names there are relative to the node's namespace (DEFAULT_NAMESPACE /lubrig unless
+the node is started with `--ros-args -r __ns:=/other`), except /clock and /diagnostics.
 """
 
 from __future__ import annotations
@@ -34,11 +34,6 @@ STREAM_QOS = qos_profile(contract.STREAM_QOS)
 ANALYSIS_QOS = qos_profile(contract.ANALYSIS_QOS)
 LATCHED_QOS = qos_profile(contract.LATCHED_QOS)
 _LEVELS = {"ok": DiagnosticStatus.OK, "warn": DiagnosticStatus.WARN, "error": DiagnosticStatus.ERROR}
-
-
-def topic(namespace: str, name: str) -> str:
-    """Absolute name of a contract name in the namespace (names starting with '/' are kept)."""
-    return contract.resolve(namespace, name)
 
 
 def descriptor(
@@ -96,10 +91,33 @@ def declare_run_selection(node: Node) -> RunConfig:
 
     The launcher passes `config_file` = the resolved run's YAML in the run folder; `case` is for
     starting a node by hand. Raises ParameterError with the offending value.
+
+    `topic_namespace` is the deprecated way of naming the namespace: topics follow the node's
+    namespace now. Empty (the default) or the node's own namespace is accepted (the latter with a
+    warning); anything else is refused with the way to set the namespace, rather than silently
+    running in another namespace than asked.
     """
     values = declare_parameters(node, contract.RUN_SELECTION)
-    contract.validate_namespace(values["topic_namespace"], "topic_namespace")
+    check_topic_namespace(node, values["topic_namespace"])
     return select_run(values["case"], values["config_file"])
+
+
+def check_topic_namespace(node: Node, value: str) -> None:
+    """Refuse a `topic_namespace` other than '' or the node's namespace (ParameterError)."""
+    if not value:
+        return
+    namespace = node.get_namespace()
+    if value == namespace:
+        node.get_logger().warning(
+            f"topic_namespace={value!r} is deprecated (topics follow the node namespace); drop it"
+        )
+        return
+    contract.validate_namespace(value, "topic_namespace")
+    raise ParameterError(
+        f"topic_namespace={value!r} is no longer supported: topics and services follow the node "
+        f"namespace ({namespace!r}); start the node with --ros-args -r __ns:={value} "
+        "(launch: namespace=) instead"
+    )
 
 
 def diagnostic_status(status: Status) -> DiagnosticStatus:
@@ -189,5 +207,4 @@ __all__ = [
     "declare_run_selection",
     "diagnostic_status",
     "spin_node",
-    "topic",
 ]

@@ -1,6 +1,11 @@
 """The contract's plain data (app/contract.py) as rclpy objects.
 
 QoS profiles, message classes, and publishers, subscriptions and services made by contract name.
+Names are handed to rclpy as the contract holds them, RELATIVE (``band_velocity``,
+``plant/reset``; only ``/clock`` and ``/diagnostics`` are absolute): rcl resolves them against
+the node's namespace and applies remap rules, so ``--ros-args -r __ns:=/rig2``, relative remaps
+(``-r band_velocity:=/my/band``) and launch namespaces/remappings work as in every ROS 2 package.
+The resolved name is the entity's ``topic_name`` / ``srv_name``.
 """
 
 from __future__ import annotations
@@ -36,23 +41,21 @@ def message_class(msgtype: str) -> type:
         raise ValueError(f"message type {msgtype!r} is not installed") from exc
 
 
-def create_publisher(node: Any, namespace: str, name: str) -> Any:
-    """A publisher of the contract topic `name` in `namespace` (type and QoS from the contract)."""
-    spec = contract.topic(name).resolved(namespace)
+def create_publisher(node: Any, name: str) -> Any:
+    """A publisher of the contract topic `name` (type and QoS from the contract), name resolved by rcl."""
+    spec = contract.topic(name)
     return node.create_publisher(message_class(spec.msgtype), spec.name, qos_profile(spec.qos))
 
 
-def create_subscription(
-    node: Any, namespace: str, name: str, callback: Callable[[Any], None], raw: bool = False
-) -> Any:
-    """A subscription to the contract topic `name` in `namespace`."""
-    spec = contract.topic(name).resolved(namespace)
+def create_subscription(node: Any, name: str, callback: Callable[[Any], None], raw: bool = False) -> Any:
+    """A subscription to the contract topic `name`, name resolved by rcl (namespace, remaps)."""
+    spec = contract.topic(name)
     return node.create_subscription(
         message_class(spec.msgtype), spec.name, callback, qos_profile(spec.qos), raw=raw
     )
 
 
-def create_service(node: Any, namespace: str, name: str, callback: Callable[[Any, Any], Any]) -> Any:
-    """A service server of the contract service `name` in `namespace`."""
-    spec = contract.service(name).resolved(namespace)
+def create_service(node: Any, name: str, callback: Callable[[Any, Any], Any]) -> Any:
+    """A service server of the contract service `name`, name resolved by rcl (namespace, remaps)."""
+    spec = contract.service(name)
     return node.create_service(message_class(spec.srvtype), spec.name, callback)

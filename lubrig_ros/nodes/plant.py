@@ -40,9 +40,8 @@ class Plant(Node):
     """The rig as a ROS node (see module docstring)."""
 
     def __init__(self) -> None:
-        super().__init__("plant")
+        super().__init__("plant", namespace=common.DEFAULT_NAMESPACE)  # -r __ns:=... overrides
         base = common.declare_run_selection(self)
-        ns = self.get_parameter("topic_namespace").value
         # the friction law first: its parameter dataclass decides the friction.<field> parameters
         law = common.declare(self, contract.FRICTION_LAW, law_of(base))
         self.config_names = config_parameters(law)
@@ -54,11 +53,11 @@ class Plant(Node):
         self.wait_for_subscriber = values["wait_for_subscriber"]
         settings = PlantSettings(values["mode"], values["band_velocity_limit"], values["stale_timeout"])
         outputs = ("displacement", "velocity", "friction_coefficient", "state")
-        self.pub_x, self.pub_v, self.pub_mu, self.pub_state = (create_publisher(self, ns, n) for n in outputs)
-        self.pub_clock = create_publisher(self, ns, "/clock") if self.mode == "sim" else None
-        self.pub_diag = create_publisher(self, ns, "/diagnostics")
-        self.pub_config = create_publisher(self, ns, "run_config")
-        self.pub_complete = create_publisher(self, ns, "run_complete")
+        self.pub_x, self.pub_v, self.pub_mu, self.pub_state = (create_publisher(self, n) for n in outputs)
+        self.pub_clock = create_publisher(self, "/clock") if self.mode == "sim" else None
+        self.pub_diag = create_publisher(self, "/diagnostics")
+        self.pub_config = create_publisher(self, "run_config")
+        self.pub_complete = create_publisher(self, "run_complete")
         self._msgs = (Float64(), Float64(), Float64(), JointState(), Clock())
         self._msgs[3].name = ["mass", "band"]
         self.session = PlantSession(
@@ -73,9 +72,9 @@ class Plant(Node):
         self.pub_config.publish(String(data=self.session.config.to_yaml()))
         self.pub_complete.publish(Bool(data=False))
         # raw (serialized CDR) subscription: about 2x cheaper per message than a Float64 object
-        create_subscription(self, ns, "band_velocity", self._on_band_raw, raw=True)
-        create_service(self, ns, "plant/reset", self._on_reset)
-        create_service(self, ns, "plant/pause", self._on_pause)
+        create_subscription(self, "band_velocity", self._on_band_raw, raw=True)
+        create_service(self, "plant/reset", self._on_reset)
+        create_service(self, "plant/pause", self._on_pause)
         self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None

@@ -1,0 +1,113 @@
+"""Relative names (issue 11): the nodes' topics and services follow the node namespace.
+
+Real node processes started with `--ros-args -r __ns:=/rigA` produce the run on /rigA/...,
+equal to core.run.simulate; a relative remap (`-r band_velocity:=...`) moves a topic; a separate
+process sees every topic and service of the contract under /rigA with the documented types
+(graph API). `topic_namespace` (the old way) is refused with the way to do it now; `lubrig rig
+--namespace` runs the rig in that namespace.
+"""
+
+from __future__ import annotations
+
+import subprocess
+
+import numpy as np
+import pytest
+from lubrig_testkit.harness import BIN
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool, Float64
+
+from lubrig_ros.app import contract
+from lubrig_ros.core.presets import load_case
+from lubrig_ros.core.run import simulate
+from lubrig_ros.nodes import common
+
+NS = "/rigA"
+BAND = "/rigA_band/v"  # where the relative remap moves band_velocity
+DURATION = 1.0
+
+
+def test_nodes_in_a_namespace_with_a_relative_remap(procs, probe):
+    for name in ("displacement", "velocity", "friction_coefficient"):
+        probe.subscribe(f"{NS}/{name}", Float64)
+    probe.subscribe(f"{NS}/state", JointState)
+    probe.subscribe("/clock", Clock)
+    probe.subscribe(BAND, Float64)
+    probe.subscribe(f"{NS}/run_complete", Bool, common.LATCHED_QOS)
+    ros_args = ["--ros-args", "-r", f"__ns:={NS}", "-r", f"band_velocity:={BAND}"]
+    procs.node("plant", *ros_args, case=1, duration=DURATION, wait_for_subscriber="probe")
+    procs.node("belt_drive", *ros_args, case=1, duration=DURATION)
+    procs.node("analysis", *ros_args, case=1)
+    done = probe.wait_for(lambda: any(m.data for m in probe.messages[f"{NS}/run_complete"]), 60)
+    assert done, procs.logs()
+    n = round(DURATION * 1000)
+    assert probe.wait_for(lambda: len(probe.messages[f"{NS}/displacement"]) >= n + 1, 5)
+
+    # a separate process (the probe) sees every contract topic and service under /rigA
+    expected = {t.name: t.msgtype for t in contract.documented_topics(NS).values()}
+    expected[BAND] = expected.pop(f"{NS}/band_velocity")  # moved by the relative remap
+    assert probe.wait_for(lambda: set(expected) <= set(probe.topics()), 20), sorted(probe.topics())
+    topics = probe.topics()
+    for name, msgtype in expected.items():
+        assert topics[name] == [msgtype], (name, topics[name])
+    assert f"{NS}/band_velocity" not in topics  # nothing left on the unremapped name
+    assert not [t for t in topics if t.startswith("/lubrig")], sorted(topics)
+    services = dict(probe.node.get_service_names_and_types())
+    for s in contract.SERVICES:
+        assert services[f"{NS}/{s.name}"] == [s.srvtype], (s.name, services)
+    for node in ("plant", "belt_drive", "analysis"):  # parameter services move with the node
+        assert f"{NS}/{node}/set_parameters" in services, sorted(services)
+    names = {(name, namespace) for name, namespace in probe.node.get_node_names_and_namespaces()}
+    assert {("plant", NS), ("belt_drive", NS), ("analysis", NS)} <= names, names
+    # a parameter is set on the namespaced node
+    result = probe.set_parameter(f"{NS[1:]}/plant", "rig.damping_ratio", 0.05)
+    assert result.successful, result.reason
+    codes = procs.stop_all()
+    ref = simulate(load_case(1).with_overrides(duration=DURATION))
+    x = np.array([m.data for m in probe.messages[f"{NS}/displacement"]])
+    assert np.array_equal(x, ref.displacement)  # the run, bit-identical, on /rigA
+    assert np.array_equal([m.data for m in probe.messages[BAND]], ref.band_velocity[1:])
+    assert all(code == 0 for code in codes.values()), codes
+
+
+def test_topic_namespace_other_than_the_node_namespace_is_refused(ros_env):
+    res = subprocess.run(
+        [str(BIN / "plant"), "--ros-args", "-r", "__ns:=/rigB", "-p", "topic_namespace:=/rigC"],
+        capture_output=True, text=True, timeout=60, env=ros_env, check=False,
+    )
+    assert res.returncode == 2
+    out = res.stdout + res.stderr
+    assert "topic_namespace='/rigC' is no longer supported" in out and "-r __ns:=/rigC" in out, out
+
+
+@pytest.mark.slow  # a whole rig run with the recorder
+def test_lubrig_rig_namespace(tmp_path, ros_env):
+    out = tmp_path / "run"
+    res = subprocess.run(
+        [str(BIN / "lubrig"), "rig", "--case", "1", "--duration", "1", "--bag", str(out),
+         "--namespace", "/rig_2", "--no-report"],
+        env=ros_env, capture_output=True, text=True, timeout=120, check=False,
+    )
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "namespace /rig_2" in res.stdout
+    from rosbags.rosbag2 import Reader
+
+    from lubrig_ros.bag.reader import read_arrays
+
+    with Reader(out / "bag") as reader:  # an independent reader: every topic under /rig_2
+        recorded = {c.topic for c in reader.connections}
+    assert {t.name for t in contract.documented_topics("/rig_2").values()} - {"/rig_2/run_config"} <= (
+        recorded | {"/rig_2/wavelet_image", "/rig_2/wavelet_power", "/rig_2/dominant_frequency",
+                    "/rig_2/oscillation_growing"}
+    ), recorded
+    assert not [t for t in recorded if t.startswith("/lubrig")], recorded
+    arrays = read_arrays(out / "bag", ["/rig_2/displacement", "/rig_2/band_velocity"])
+    ref = simulate(load_case(1).with_overrides(duration=1.0))
+    assert np.array_equal(arrays["/rig_2/displacement"]["data"], ref.displacement)
+    bad = subprocess.run(
+        [str(BIN / "lubrig"), "rig", "--case", "1", "--bag", str(tmp_path / "x"), "--namespace", "rig-2"],
+        env=ros_env, capture_output=True, text=True, timeout=60, check=False,
+    )
+    assert bad.returncode == 2 and "--namespace='rig-2' is not valid" in bad.stderr, bad.stderr
+
