@@ -34,6 +34,7 @@ class Analysis(Node):
         super().__init__("analysis", namespace=common.DEFAULT_NAMESPACE)  # -r __ns:=... overrides
         config = common.declare_run_selection(self)
         values = common.declare_parameters(self, ANALYSIS_PARAMETERS)
+        common.check_updates(self, ANALYSIS_PARAMETERS)
         if values["convention"]:
             config = config.with_overrides(convention=values["convention"])
         settings = AnalysisSettings(

@@ -63,6 +63,7 @@ class BeltDrive(Node):
         self.profile: BandProfile = self.profile_parameters.apply(given)
         self.add_pre_set_parameters_callback(self._complete_profile_update)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        common.check_updates(self, specs)
 
         self.publisher = create_publisher(self, "band_velocity")
         self.total = round(self.duration * self.sample_rate)

@@ -15,7 +15,7 @@ from typing import Any
 
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -51,17 +51,75 @@ def descriptor(
     return desc
 
 
+_INT64 = (-(2**63), 2**63 - 1)
+
+
+def describe(spec: NodeParameter, template: ParameterDescriptor | None = None) -> ParameterDescriptor:
+    """The full descriptor of a contract parameter: description (unit, valid values), read-only, range.
+
+    Numbers with a bound get `floating_point_range` / `integer_range` (a one-sided bound has the
+    other end at ±inf, or the int64 limits), so `ros2 param describe` shows it and rclpy refuses
+    values outside it. The range is closed; an open lower bound (`low_open`: "> 0") is refused
+    at its end by the contract's own check (`check_updates`). `template` (the declared
+    descriptor) keeps rclpy's type fields.
+    """
+    unit = f" [{spec.unit}]" if spec.unit and spec.unit not in ("1", "SI") else ""
+    desc = ParameterDescriptor()
+    if template is not None:
+        desc.type, desc.dynamic_typing = template.type, template.dynamic_typing
+    desc.name = spec.name
+    desc.description = f"{spec.description}{unit}"
+    desc.additional_constraints = f"valid: {spec.expected()}"
+    desc.read_only = spec.read_only
+    if spec.low is not None or spec.high is not None:
+        if spec.type == "double":
+            low = -math.inf if spec.low is None else float(spec.low)
+            high = math.inf if spec.high is None else float(spec.high)
+            desc.floating_point_range = [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
+        elif spec.type == "integer":
+            low_i = _INT64[0] if spec.low is None else int(spec.low)
+            high_i = _INT64[1] if spec.high is None else int(spec.high)
+            desc.integer_range = [IntegerRange(from_value=low_i, to_value=high_i, step=0)]
+    return desc
+
+
 def declare(node: Node, spec: NodeParameter, default: Any = None) -> Any:
-    """Declare one contract parameter (description, unit, read-only) and return its checked value.
+    """Declare one contract parameter (description, unit, range, read-only); return its checked value.
 
     `default` is used when the contract's default is None (a value from the run configuration).
     ParameterError (exit status 2 in spin_node) when the value is not valid for the contract.
-    (Ranges are checked here, with the contract's message, not in the descriptor.)
+    The given value is checked by the contract first (its message names the parameter, the value
+    and what is valid), then the full descriptor with the range is applied (`describe`).
     """
     value = spec.default if spec.default is not None else default
-    text = spec.description + (f" [{spec.unit}]" if spec.unit and spec.unit not in ("1", "SI") else "")
-    declared = node.declare_parameter(spec.name, value, descriptor(text, read_only=spec.read_only))
-    return spec.check(declared.value)
+    declared = node.declare_parameter(spec.name, value, ParameterDescriptor(description=spec.description))
+    checked = spec.check(declared.value)
+    node.set_descriptor(spec.name, describe(spec, node.describe_parameter(spec.name)))
+    return checked
+
+
+def check_updates(node: Node, specs: Iterable[NodeParameter]) -> None:
+    """Check run-time updates of the contract parameters with the contract's rules.
+
+    rclpy refuses a value outside the descriptor's range first, with its own wording ("Parameter
+    rtol out of range Min: 1e-13, Max: 0.01, value: 1.0": parameter, value and range); what the
+    descriptor cannot say (an open bound, a non-finite value, the choices of a string) is refused
+    here with the contract's message.
+    """
+    by_name = {spec.name: spec for spec in specs}
+
+    def callback(params: list[Any]) -> SetParametersResult:
+        for param in params:
+            spec = by_name.get(param.name)
+            if spec is None:
+                continue
+            try:
+                spec.check(param.value)
+            except ParameterError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(callback)
 
 
 def declare_parameters(
@@ -202,9 +260,11 @@ __all__ = [
     "LATCHED_QOS",
     "STREAM_QOS",
     "DeadlineLoop",  # from app.timing (belt_drive)
+    "check_updates",
     "declare",
     "declare_parameters",
     "declare_run_selection",
+    "describe",
     "diagnostic_status",
     "spin_node",
 ]

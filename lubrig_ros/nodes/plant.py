@@ -69,6 +69,7 @@ class Plant(Node):
             log=self._log,
         )
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        common.check_updates(self, contract.plant_parameters(law))
         self.pub_config.publish(String(data=self.session.config.to_yaml()))
         self.pub_complete.publish(Bool(data=False))
         # raw (serialized CDR) subscription: about 2x cheaper per message than a Float64 object
