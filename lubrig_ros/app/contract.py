@@ -484,6 +484,10 @@ BELT_DRIVE_PARAMETERS: tuple[NodeParameter, ...] = (
        unit="samples", low=1, high=900),
     _p("start_delay", "double", 0.5, "wall time to wait once the plant is seen (discovery)", unit="s",
        low=0.0, high=60.0),
+    _p("band_velocity_limit", "double", BAND_VELOCITY_LIMIT,
+       "the plant's band_velocity_limit: a profile whose |v_band| exceeds it over the run (the plant "
+       "would reject those samples and the run stall) is refused, at start and at run time",
+       unit="m/s", low=0.0, low_open=True),
     WAIT_FOR_SUBSCRIBER,
     REALTIME_PRIORITY,
     _p("profile.kind", "string", None, "band profile kind (constant | cycle | sine | table); run time",

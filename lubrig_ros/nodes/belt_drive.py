@@ -19,6 +19,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
 from ..app.contract import BELT_DRIVE_PARAMETERS
+from ..app.plant_session import band_range_problem
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
 from ..core.profiles import BandProfile, ProfileParameters, profile_kinds, profile_to_dict
@@ -60,7 +61,12 @@ class BeltDrive(Node):
             current = self.get_parameter(f"profile.{name}").value
             if current != value:
                 given[name] = current
-        self.profile: BandProfile = self.profile_parameters.apply(given)
+        self.band_velocity_limit = values["band_velocity_limit"]
+        profile = self.profile_parameters.apply(given)
+        problem = self._band_problem(profile)
+        if problem is not None:
+            raise ParameterError(f"profile {profile_to_dict(profile)} refused: {problem}")
+        self.profile: BandProfile = profile
         self.add_pre_set_parameters_callback(self._complete_profile_update)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         common.check_updates(self, specs)
@@ -120,9 +126,18 @@ class BeltDrive(Node):
         except (ParameterError, ValueError, TypeError) as exc:
             self.get_logger().warning(f"profile update rejected: {exc}")
             return SetParametersResult(successful=False, reason=str(exc))
+        problem = self._band_problem(profile)
+        if problem is not None:
+            reason = f"profile {profile_to_dict(profile)} refused: {problem}"
+            self.get_logger().warning(f"profile update rejected: {reason}")
+            return SetParametersResult(successful=False, reason=reason)
         self.profile = profile
         self.get_logger().info(f"profile updated: {profile_to_dict(profile)}")
         return SetParametersResult(successful=True)
+
+    def _band_problem(self, profile: BandProfile) -> str | None:
+        """Cross-check with the plant: the profile over the run within band_velocity_limit."""
+        return band_range_problem(profile, self.sample_rate, self.duration, self.band_velocity_limit)
 
     def _sample(self, k: int) -> float:
         value = float(self.profile(k / self.sample_rate))

@@ -1,0 +1,59 @@
+"""Cross-node check (issue 11 'Silent stall'): belt_drive refuses a profile the plant would reject.
+
+The plant rejects |v_band| > band_velocity_limit; a profile beyond it used to be accepted by
+belt_drive, and the sim run stalled without a word. Now the profile over the run is checked
+against the limit at start (exit 2, the reason) and at run time (the update refused with it).
+"""
+
+from __future__ import annotations
+
+import subprocess
+
+import pytest
+from test_nodes_support import BIN, Probe, Procs, new_domain, ros_env
+
+from lubrig_ros.app.plant_session import band_range_problem
+from lubrig_ros.core.profiles import profile_from_dict
+
+
+def test_band_range_problem_names_value_time_and_limit():
+    ok = profile_from_dict({"kind": "constant", "velocity": 1e-6})
+    assert band_range_problem(ok, 1000.0, 2.0, 1e-2) is None
+    fast = profile_from_dict({"kind": "constant", "velocity": 0.5})
+    reason = band_range_problem(fast, 1000.0, 2.0, 1e-2)
+    assert reason is not None and "|v_band| = 0.5 m/s" in reason and "band_velocity_limit 0.01" in reason
+    # a cycle whose low plateau is -1 m/s: found where it happens, not only at t = 0
+    cycle = profile_from_dict({"kind": "cycle", "low_velocity": -1.0, "high_velocity": 1e-6,
+                               "plateau_time": 1.0, "ramp_time": 0.5})
+    reason = band_range_problem(cycle, 1000.0, 10.0, 1e-2)
+    assert reason is not None and "|v_band| = 1 m/s" in reason
+    assert band_range_problem(cycle, 1000.0, 10.0, 2.0) is None
+    ramp = profile_from_dict({"kind": "sine", "mean_velocity": 0.0, "amplitude": 0.02, "frequency": 0.1})
+    reason = band_range_problem(ramp, 1000.0, 10.0, 1e-2)  # peaks at t = 2.5 s
+    assert reason is not None and "t = 2.5 s" in reason, reason
+
+
+@pytest.mark.ros
+def test_belt_drive_refuses_a_profile_outside_the_plants_band_range(tmp_path):
+    res = subprocess.run(
+        [str(BIN / "belt_drive"), "--ros-args", "-p", "case:=1", "-p", "profile.high_velocity:=0.5"],
+        capture_output=True, text=True, timeout=60, env=ros_env(new_domain()), check=False,
+    )
+    assert res.returncode == 2
+    out = res.stdout + res.stderr
+    assert "refused" in out and "|v_band| = 0.5 m/s" in out and "band_velocity_limit 0.01 m/s" in out, out
+
+    domain = new_domain()
+    probe = Probe(domain)
+    procs = Procs(domain, tmp_path)
+    try:
+        procs.start("belt_drive", case=1)
+        result = probe.set_parameter("belt_drive", "profile.high_velocity", 0.5)
+        assert not result.successful
+        assert "|v_band| = 0.5 m/s" in result.reason and "0.01 m/s" in result.reason, result.reason
+        assert probe.set_parameter("belt_drive", "profile.high_velocity", 5e-3).successful
+    finally:
+        codes = procs.stop()
+        probe.close()
+    assert codes == {"belt_drive": 0}, codes
+    assert "profile update rejected" in procs.log("belt_drive")
