@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import subprocess
 
-import pytest
-from test_nodes_support import BIN, Probe, Procs, new_domain, ros_env
+from lubrig_testkit.harness import BIN
 
 from lubrig_ros.app.plant_session import band_range_problem
 from lubrig_ros.core.profiles import profile_from_dict
@@ -33,27 +32,20 @@ def test_band_range_problem_names_value_time_and_limit():
     assert reason is not None and "t = 2.5 s" in reason, reason
 
 
-@pytest.mark.ros
-def test_belt_drive_refuses_a_profile_outside_the_plants_band_range(tmp_path):
+def test_belt_drive_refuses_a_profile_outside_the_plants_band_range(procs, probe, ros_env):
     res = subprocess.run(
         [str(BIN / "belt_drive"), "--ros-args", "-p", "case:=1", "-p", "profile.high_velocity:=0.5"],
-        capture_output=True, text=True, timeout=60, env=ros_env(new_domain()), check=False,
+        capture_output=True, text=True, timeout=60, env=ros_env, check=False,
     )
     assert res.returncode == 2
     out = res.stdout + res.stderr
     assert "refused" in out and "|v_band| = 0.5 m/s" in out and "band_velocity_limit 0.01 m/s" in out, out
 
-    domain = new_domain()
-    probe = Probe(domain)
-    procs = Procs(domain, tmp_path)
-    try:
-        procs.start("belt_drive", case=1)
-        result = probe.set_parameter("belt_drive", "profile.high_velocity", 0.5)
-        assert not result.successful
-        assert "|v_band| = 0.5 m/s" in result.reason and "0.01 m/s" in result.reason, result.reason
-        assert probe.set_parameter("belt_drive", "profile.high_velocity", 5e-3).successful
-    finally:
-        codes = procs.stop()
-        probe.close()
+    procs.node("belt_drive", case=1)
+    result = probe.set_parameter("lubrig/belt_drive", "profile.high_velocity", 0.5)
+    assert not result.successful
+    assert "|v_band| = 0.5 m/s" in result.reason and "0.01 m/s" in result.reason, result.reason
+    assert probe.set_parameter("lubrig/belt_drive", "profile.high_velocity", 5e-3).successful
+    codes = procs.stop_all()
     assert codes == {"belt_drive": 0}, codes
     assert "profile update rejected" in procs.log("belt_drive")

@@ -11,14 +11,11 @@ from __future__ import annotations
 
 import math
 
-import pytest
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import DescribeParameters
-from test_nodes_support import Probe, Procs, new_domain
 
 from lubrig_ros.app import contract
 
-pytestmark = pytest.mark.ros
 NS = contract.DEFAULT_NAMESPACE
 
 
@@ -43,41 +40,35 @@ def _check_descriptor(node: str, d, spec: contract.NodeParameter) -> None:
     assert d.type == expected_type[spec.type], (node, d.name, d.type)
 
 
-def test_descriptors_hold_the_contract_ranges_and_runtime_updates_are_checked(tmp_path):
-    domain = new_domain()
-    probe = Probe(domain)
-    procs = Procs(domain, tmp_path)
-    try:
-        for node in contract.NODE_PARAMETERS:
-            procs.start(node, case=1)
-        bounded = 0
-        for node, specs in contract.NODE_PARAMETERS.items():
-            # profile.*: declared from the core profile registry with its own text (belt_drive)
-            names = sorted(p.name for p in specs if not p.name.startswith("profile."))
-            described = probe.call(
-                DescribeParameters, f"{NS}/{node}/describe_parameters",
-                DescribeParameters.Request(names=names), 30,
-            )
-            assert [d.name for d in described.descriptors] == names
-            for d in described.descriptors:
-                spec = contract.parameter(node, d.name)
-                _check_descriptor(node, d, spec)
-                bounded += spec.low is not None or spec.high is not None
-        assert bounded >= 15  # the ranges really are there (not a vacuous loop)
+def test_descriptors_hold_the_contract_ranges_and_runtime_updates_are_checked(procs, probe):
+    for node in contract.NODE_PARAMETERS:
+        procs.node(node, case=1)
+    bounded = 0
+    for node, specs in contract.NODE_PARAMETERS.items():
+        # profile.*: declared from the core profile registry with its own text (belt_drive)
+        names = sorted(p.name for p in specs if not p.name.startswith("profile."))
+        described = probe.call(
+            DescribeParameters, f"{NS}/{node}/describe_parameters",
+            DescribeParameters.Request(names=names), 120,
+        )
+        assert [d.name for d in described.descriptors] == names
+        for d in described.descriptors:
+            spec = contract.parameter(node, d.name)
+            _check_descriptor(node, d, spec)
+            bounded += spec.low is not None or spec.high is not None
+    assert bounded >= 15  # the ranges really are there (not a vacuous loop)
 
-        # run time: rclpy refuses outside the descriptor's range first; the reason still names
-        # the parameter, the bad value and the valid range
-        result = probe.set_parameter("plant", "rtol", 1.0)
-        assert not result.successful
-        assert "rtol" in result.reason and "1.0" in result.reason and "0.01" in result.reason, result.reason
-        result = probe.set_parameter("plant", "rtol", math.nan)
-        assert not result.successful and "rtol" in result.reason and "nan" in result.reason
-        # what the descriptor cannot hold (the choices of a string) is the contract's own message
-        result = probe.set_parameter("plant", "convention", "sideways")
-        assert not result.successful
-        assert "convention='sideways' is not valid; expected one of" in result.reason, result.reason
-        assert probe.set_parameter("plant", "rtol", 1e-9).successful  # in range: accepted
-    finally:
-        codes = procs.stop()
-        probe.close()
+    # run time: rclpy refuses outside the descriptor's range first; the reason still names
+    # the parameter, the bad value and the valid range
+    result = probe.set_parameter("lubrig/plant", "rtol", 1.0)
+    assert not result.successful
+    assert "rtol" in result.reason and "1.0" in result.reason and "0.01" in result.reason, result.reason
+    result = probe.set_parameter("lubrig/plant", "rtol", math.nan)
+    assert not result.successful and "rtol" in result.reason and "nan" in result.reason
+    # what the descriptor cannot hold (the choices of a string) is the contract's own message
+    result = probe.set_parameter("lubrig/plant", "convention", "sideways")
+    assert not result.successful
+    assert "convention='sideways' is not valid; expected one of" in result.reason, result.reason
+    assert probe.set_parameter("lubrig/plant", "rtol", 1e-9).successful  # in range: accepted
+    codes = procs.stop_all()
     assert all(code == 0 for code in codes.values()), codes
