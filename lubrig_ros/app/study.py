@@ -21,6 +21,7 @@ from ..core.friction import friction_coefficient, friction_minimum, friction_pea
 from ..core.integrator import Trajectory
 from ..core.params import RigParameters
 from ..core.presets import RunConfig
+from ..core.profiles import RegularCycle
 from ..core.stability import critical_damping_ratio, unstable_intervals
 
 #: Damping ratios up to this count as "any (realistic) damping" in the stability statements.
@@ -87,7 +88,7 @@ def case_metrics(config: RunConfig, trajectory: Trajectory) -> dict[str, Any]:
     out["f0_amplitude_late"] = float(amplitude[centres >= t[-1] / 2.0].mean())
     band = config.band
     out.update(growth_v1=None, growth_v2=None, separation=None)
-    if band.kind == "cycle":
+    if isinstance(band, RegularCycle):
         rates = {}
         for key, level in (("growth_v1", band.low_velocity), ("growth_v2", band.high_velocity)):
             found = criteria.plateau_growth_rates(
@@ -748,7 +749,7 @@ def write_scan_csv(path: Any, scan: dict[float, Metrics]) -> None:
             for key in columns:
                 value = row.get(key)
                 if key in SCAN_LISTS:
-                    cells.append(" ".join(repr(float(v)) for v in value))
+                    cells.append(" ".join(repr(float(v)) for v in value or ()))
                 elif value is None:
                     cells.append("")
                 else:

@@ -128,7 +128,7 @@ class RigParameters:
     #: law's, see core.friction_laws); its normal_force is the rig's load N.
     friction: Any = field(default_factory=FrictionParameters)
     #: explicit γ (s/s, > 0) overriding the convention's; a convention name is accepted too
-    velocity_coupling: float | None = None
+    velocity_coupling: float | str | None = None  # γ; a convention name is normalized in __post_init__
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mass", _check_positive("mass", self.mass))
@@ -143,7 +143,7 @@ class RigParameters:
             raise ParameterError(
                 f"convention={self.convention!r} is not valid; expected one of {list(CONVENTIONS)}"
             )
-        coupling = self.velocity_coupling
+        coupling: Any = self.velocity_coupling
         if isinstance(coupling, str) and coupling.strip() in CONVENTIONS:
             object.__setattr__(self, "convention", coupling.strip())
             coupling = None
@@ -190,7 +190,7 @@ class RigParameters:
     def velocity_factor(self) -> float:
         """γ in v_rel = v_band − γ ẋ: explicit, or by convention 1 (physical), 1/ω0 (paper), 1/f0 (hertz)."""
         if self.velocity_coupling is not None:
-            return self.velocity_coupling
+            return float(self.velocity_coupling)
         return convention_coupling(self.convention, self.natural_frequency)
 
     @property
