@@ -33,7 +33,7 @@ def test_sim_case1_equals_core_simulate(procs, probe):
     )
     assert done, procs.logs()
     n = round(DURATION * 1000)
-    assert probe.wait_for(lambda: len(probe.messages[f"{ns}/displacement"]) >= n + 1, 30)
+    assert probe.wait_for(lambda: len(probe.messages[f"{ns}/displacement"]) >= n + 1, 120)
     expected = {
         f"{ns}/band_velocity": "std_msgs/msg/Float64",
         f"{ns}/displacement": "std_msgs/msg/Float64",
