@@ -44,8 +44,9 @@ run: setup
 	$(VENV)/bin/lubrig rig --case 1 --duration 10 --bag runs/latest
 
 # The whole suite (ROS node processes over DDS included); the README's test command.
+# Every ROS test file runs in a pytest process of its own (lubrig_testkit/suite.py says why).
 test: setup
-	$(PY) -m pytest -q $(PYTEST_ARGS) test
+	$(PY) -m lubrig_testkit.suite $(PYTEST_ARGS)
 
 # The ROS-free, quick tier: no node processes, no DDS, no long runs (see test/conftest.py).
 test-fast: setup
