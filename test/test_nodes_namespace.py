@@ -37,7 +37,7 @@ def test_nodes_in_a_namespace_with_a_relative_remap(procs, probe):
     probe.subscribe(f"{NS}/run_complete", Bool, common.LATCHED_QOS)
     ros_args = ["--ros-args", "-r", f"__ns:={NS}", "-r", f"band_velocity:={BAND}"]
     procs.node("plant", *ros_args, case=1, duration=DURATION, wait_for_subscriber="probe")
-    procs.node("belt_drive", *ros_args, case=1, duration=DURATION)
+    procs.node("belt_drive", *ros_args, case=1, duration=DURATION, wait_for_subscriber="probe")
     procs.node("analysis", *ros_args, case=1)
     done = probe.wait_for(lambda: any(m.data for m in probe.messages[f"{NS}/run_complete"]), 60)
     assert done, procs.logs()
