@@ -126,6 +126,8 @@ class QoS:
 
 #: Sample streams (band, plant outputs, /clock): reliable, deep queue, volatile.
 STREAM_QOS = QoS(depth=1000)
+#: Blocks of samples and flow-control progress: reliable, volatile (a block is up to block_length samples).
+BLOCK_QOS = QoS(depth=100)
 #: Analysis outputs and diagnostics.
 ANALYSIS_QOS = QoS(depth=10)
 #: Once-per-run messages (run configuration, run complete), latched.
@@ -182,19 +184,27 @@ def _t(name: str, msgtype: str, qos: QoS, publisher: str, rate: str, unit: str, 
 
 
 TOPICS: tuple[Topic, ...] = (
-    _t("band_velocity", "std_msgs/msg/Float64", STREAM_QOS, "belt_drive or external rig software",
-       OUTPUT_RATE, "m/s", "band velocity v_band"),
-    _t("displacement", "std_msgs/msg/Float64", STREAM_QOS, "plant", OUTPUT_RATE, "m",
-       "displacement x of the mass"),
-    _t("velocity", "std_msgs/msg/Float64", STREAM_QOS, "plant", OUTPUT_RATE, "m/s",
-       "velocity ẋ of the mass"),
-    _t("friction_coefficient", "std_msgs/msg/Float64", STREAM_QOS, "plant", OUTPUT_RATE, "1",
-       "friction coefficient μ(v_rel)"),
-    _t("state", "sensor_msgs/msg/JointState", STREAM_QOS, "plant", OUTPUT_RATE, "SI",
-       'header.stamp = rig time; name ["mass", "band"]; position [x m, belt travel m]; '
-       "velocity [ẋ m/s, v_band m/s this sample was integrated with]; effort [μ·N N, 0]"),
-    _t("/clock", "rosgraph_msgs/msg/Clock", STREAM_QOS, "plant (sim mode only)",
-       "output rate + 5 Hz heartbeat", "s", "rig time"),
+    _t("band_velocity", "std_msgs/msg/Float64", STREAM_QOS, "belt_drive (realtime) or external rig software",
+       OUTPUT_RATE, "m/s", "band velocity v_band, one sample per message"),
+    _t("band_velocity_block", "lubrig_interfaces/msg/BandVelocityBlock", BLOCK_QOS,
+       "belt_drive (sim) or external rig software", "output rate / block_length", "m/s",
+       "consecutive band velocity samples v_band (sim mode's band input)"),
+    _t("state", "lubrig_interfaces/msg/RigState", STREAM_QOS, "plant (realtime, rig_in_loop)",
+       OUTPUT_RATE, "SI", "one output sample of the rig: x, ẋ, μ, friction force, v_band, v_rel, "
+       "belt travel, sample_index, segment"),
+    _t("state_block", "lubrig_interfaces/msg/RigStateBlock", BLOCK_QOS, "plant (sim)",
+       "output rate / block_length", "SI", "consecutive output samples of the rig (fields of state)"),
+    _t("flow_progress", "lubrig_interfaces/msg/FlowProgress", BLOCK_QOS,
+       "plant (sim), recorder, required consumers", "one per block taken", "1",
+       "samples of the current segment a participant has taken; belt_drive paces on the slowest"),
+    _t("displacement", "std_msgs/msg/Float64", STREAM_QOS, "plant (scalar_topics true)", OUTPUT_RATE,
+       "m", "displacement x of the mass (optional, for simple tools)"),
+    _t("velocity", "std_msgs/msg/Float64", STREAM_QOS, "plant (scalar_topics true)", OUTPUT_RATE,
+       "m/s", "velocity ẋ of the mass (optional, for simple tools)"),
+    _t("friction_coefficient", "std_msgs/msg/Float64", STREAM_QOS, "plant (scalar_topics true)",
+       OUTPUT_RATE, "1", "friction coefficient μ(v_rel) (optional, for simple tools)"),
+    _t("/clock", "rosgraph_msgs/msg/Clock", STREAM_QOS, "plant (sim mode, publish_clock true: one owner)",
+       "one per block + 5 Hz heartbeat", "s", "rig time"),
     _t("run_config", "std_msgs/msg/String", LATCHED_QOS, "plant", "once, latched", "YAML",
        "the full run configuration (in a bag: the launcher's run_config.yaml)"),
     _t("run_complete", "std_msgs/msg/Bool", LATCHED_QOS, "plant", "on change, latched", "1",
@@ -207,6 +217,10 @@ TOPICS: tuple[Topic, ...] = (
        "(row-major)"),
     _t("wavelet_image", "sensor_msgs/msg/Image", ANALYSIS_QOS, "analysis", "1 / publish_period",
        "rgb8", "n_scales × image_width, log power over 4 decades, high frequency on top"),
+    _t("wavelet_frame", "lubrig_interfaces/msg/WaveletFrame", ANALYSIS_QOS, "analysis",
+       "1 / publish_period", "1", "wavelet_power with its frequency and time axes"),
+    _t("stability", "lubrig_interfaces/msg/StabilityFlags", ANALYSIS_QOS, "analysis",
+       "1 / publish_period", "SI", "every stability flag with the values it derives from"),
     _t("linear_zone", "std_msgs/msg/UInt8", ANALYSIS_QOS, "analysis", "1 / publish_period", "1",
        "friction zone 1, 2 or 3 at the current band velocity"),
     _t("critical_damping_ratio", "std_msgs/msg/Float64", ANALYSIS_QOS, "analysis",
@@ -227,9 +241,11 @@ SERVICES: tuple[Service, ...] = (
             "integrated on resume)"),
 )
 
-#: The plant's high-rate outputs (one message each per sample) plus its band input.
+#: The rig's sample streams: the plant's outputs (per sample or per block, scalar topics optional),
+#: its band input (per sample or per block), flow progress and /clock.
 PLANT_TOPICS: tuple[str, ...] = (
-    "displacement", "velocity", "friction_coefficient", "state", "band_velocity", "/clock",
+    "state", "state_block", "displacement", "velocity", "friction_coefficient",
+    "band_velocity", "band_velocity_block", "flow_progress", "/clock",
 )
 
 _BY_NAME: dict[str, Topic] = {t.name: t for t in TOPICS}
