@@ -44,6 +44,7 @@ def rig_state():
     _stamp(m.header, 12.345)
     m.header.frame_id = "rig"
     m.sample_index = 12345
+    m.segment = 2
     m.displacement, m.velocity = 1.25e-6, -3.5e-5
     m.friction_coefficient, m.friction_force = 0.0712, 7.12e-3
     m.band_velocity, m.relative_velocity, m.belt_travel = 1e-4, 1.35e-4, 1.2345e-3
@@ -55,6 +56,7 @@ def rig_state_block(n: int = N):
     _stamp(m.header, 2.5)
     m.sample_period = 1e-3
     m.first_sample_index = 2500
+    m.segment = 1
     k = range(n)
     m.displacement = [1e-6 * (i % 7 - 3) for i in k]
     m.velocity = [-2e-5 * (i % 5) for i in k]
@@ -102,7 +104,16 @@ def stability_flags():
     return m
 
 
+def flow_progress():
+    m = msg.FlowProgress()
+    _stamp(m.header, 5.099)
+    m.participant = "/lubrig/recorder"
+    m.segment, m.samples = 3, 5100
+    return m
+
+
 BUILDERS = {
+    "FlowProgress": flow_progress,
     "RigState": rig_state,
     "RigStateBlock": rig_state_block,
     "BandVelocityBlock": band_velocity_block,
