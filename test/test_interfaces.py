@@ -28,7 +28,9 @@ except ImportError as exc:  # loud, not skipped: `make test` builds it first (ma
     raise ImportError(f"lubrig_interfaces is not installed in {sys.prefix}: run make setup ({exc})") from exc
 
 PACKAGE = "lubrig_interfaces"
-MESSAGES = ("RigState", "RigStateBlock", "BandVelocityBlock", "WaveletFrame", "StabilityFlags", "FlowProgress")
+MESSAGES = (
+    "RigState", "RigStateBlock", "BandVelocityBlock", "WaveletFrame", "StabilityFlags", "FlowProgress",
+)
 SHARE = Path(sys.prefix) / "share" / PACKAGE / "msg"
 N = 100  # samples in the test blocks
 

@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 from ..app.contract import DEFAULT_NAMESPACE, validate_namespace
+from ..app.discovery import discovery_environment
 from ..app.selection import RunSelection
 from ..core.params import CONVENTIONS, ParameterError
 from ..core.presets import RunConfig, config_dir
@@ -207,7 +208,8 @@ def run(args: argparse.Namespace) -> int:
         "analysis": dict(selection),
     }
     procs: dict[str, subprocess.Popen] = {}
-    env = dict(os.environ)
+    discovery = discovery_environment(os.environ, args.network)  # this host only unless asked
+    env = discovery.env
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
     with_recorder = not args.no_recorder
     if with_recorder:
@@ -239,7 +241,7 @@ def run(args: argparse.Namespace) -> int:
         domain = env.get("ROS_DOMAIN_ID", "0")
         print(
             f"lubrig rig: {config.name} ({mode}, {config.duration:g} s) on ROS_DOMAIN_ID {domain}, "
-            f"namespace {namespace}"
+            f"namespace {namespace}; {discovery.isolation}"
         )
         start = time.monotonic()
         if mode == "sim":
@@ -311,6 +313,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--duration", type=_positive, metavar="S", help="run length in s")
     parser.add_argument("--bag", required=True, metavar="DIR", help="output directory")
     parser.add_argument("--timeout", type=_positive, metavar="S", help="sim: wall-time limit")
+    parser.add_argument(
+        "--network",
+        action="store_true",
+        help="let hosts on the network discover the rig (default: this host only; also "
+        "LUBRIG_DISCOVERY=network); an unsecured domain lets them drive it (docs/security.md)",
+    )
     parser.add_argument("--no-recorder", action="store_true", help="do not start the recorder")
     parser.add_argument("--no-report", action="store_true", help="do not write DIR/report")
     parser.set_defaults(func=run)

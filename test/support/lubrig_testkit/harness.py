@@ -32,6 +32,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
+from lubrig_ros.app.discovery import discovery_environment
+
 PYTHON = sys.executable
 BIN = Path(PYTHON).parent
 # 10..99: clear of the default domain 0 and of ids whose DDS ports fall in Linux's ephemeral range
@@ -88,9 +90,8 @@ class DomainLease:
 
 def ros_env(domain: int) -> dict[str, str]:
     """os.environ for processes on domain: localhost discovery, unbuffered output and logging."""
-    env = dict(os.environ)
+    env = discovery_environment(os.environ).env  # this host only, as lubrig rig does
     env["ROS_DOMAIN_ID"] = str(domain)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["PYTHONUNBUFFERED"] = "1"
     env["RCUTILS_LOGGING_BUFFERED_STREAM"] = "0"
     return env
@@ -299,8 +300,8 @@ class Probe:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
 
-        # read by rmw at init: discovery stays on this machine
-        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        # read by rmw at init: discovery and transports stay on this machine
+        os.environ.update(discovery_environment(os.environ).env)
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain)
         self.node = Node(name, context=self.context)

@@ -1,0 +1,112 @@
+"""A rig kept on this host cannot be reached from another network (app/discovery.py).
+
+An "other host" is a network namespace joined to this one by a veth pair: a participant there,
+told this host's address (ROS_STATIC_PEERS), publishes band input. A subscriber with the rig's
+default environment receives none of it; with the network environment (the control: proves the
+setup could deliver) it receives the samples. Needs CAP_NET_ADMIN and `ip`; skipped otherwise.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+import uuid
+from collections.abc import Iterator
+
+import pytest
+
+from lubrig_ros.app.discovery import discovery_environment
+
+pytestmark = pytest.mark.ros
+
+HOST, PEER = "10.213.7.1", "10.213.7.2"
+SECONDS = 6.0
+
+ATTACKER = textwrap.dedent(
+    """
+    import sys, time, rclpy
+    from std_msgs.msg import Float64
+    rclpy.init()
+    node = rclpy.create_node("intruder")
+    pub = node.create_publisher(Float64, "/lubrig/band_velocity", 10)
+    end = time.monotonic() + float(sys.argv[1])
+    while time.monotonic() < end:
+        pub.publish(Float64(data=1e-7))
+        rclpy.spin_once(node, timeout_sec=0.02)
+    """
+)
+VICTIM = textwrap.dedent(
+    """
+    import sys, time, rclpy
+    from std_msgs.msg import Float64
+    rclpy.init()
+    node = rclpy.create_node("rig_side")
+    got = []
+    node.create_subscription(Float64, "/lubrig/band_velocity", lambda m: got.append(m.data), 10)
+    end = time.monotonic() + float(sys.argv[1])
+    while time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    print(len(got), flush=True)
+    """
+)
+
+
+def _ip(*args: str) -> None:
+    subprocess.run(["ip", *args], check=True, capture_output=True, timeout=10)
+
+
+@pytest.fixture
+def other_host() -> Iterator[str]:
+    """A network namespace on a veth link to this one; yields its name."""
+    if shutil.which("ip") is None:
+        pytest.skip("no `ip` command: cannot build a second network")
+    name = f"lubrig{uuid.uuid4().hex[:6]}"
+    host_if, peer_if = f"{name}h", f"{name}p"
+    try:
+        _ip("netns", "add", name)
+    except (subprocess.CalledProcessError, OSError) as exc:
+        pytest.skip(f"cannot create a network namespace here (needs CAP_NET_ADMIN): {exc}")
+    try:
+        _ip("link", "add", host_if, "type", "veth", "peer", "name", peer_if)
+        _ip("link", "set", peer_if, "netns", name)
+        _ip("addr", "add", f"{HOST}/24", "dev", host_if)
+        _ip("link", "set", host_if, "up")
+        _ip("netns", "exec", name, "ip", "addr", "add", f"{PEER}/24", "dev", peer_if)
+        _ip("netns", "exec", name, "ip", "link", "set", peer_if, "up")
+        _ip("netns", "exec", name, "ip", "link", "set", "lo", "up")
+        yield name
+    finally:
+        subprocess.run(["ip", "link", "del", host_if], capture_output=True, timeout=10)
+        subprocess.run(["ip", "netns", "del", name], capture_output=True, timeout=10)
+
+
+def _received(netns: str, domain: int, network: bool) -> int:
+    rig_env = discovery_environment(os.environ, network=network).env
+    rig_env["ROS_DOMAIN_ID"] = str(domain)
+    intruder_env = {k: v for k, v in os.environ.items() if not k.startswith(("ROS_", "FASTDDS_"))}
+    intruder_env.update(
+        ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="SUBNET", ROS_STATIC_PEERS=HOST
+    )
+    victim = subprocess.Popen(
+        [sys.executable, "-c", VICTIM, str(SECONDS)], env=rig_env, stdout=subprocess.PIPE, text=True
+    )
+    intruder = subprocess.Popen(
+        ["ip", "netns", "exec", netns, sys.executable, "-c", ATTACKER, str(SECONDS)], env=intruder_env
+    )
+    try:
+        out, _ = victim.communicate(timeout=SECONDS + 60)
+        assert intruder.wait(timeout=60) == 0
+    finally:
+        for p in (victim, intruder):
+            if p.poll() is None:
+                p.kill()
+    return int(out.strip())
+
+
+def test_a_peer_on_another_network_cannot_inject_band_input(other_host, ros_domain):
+    assert _received(other_host, ros_domain, network=False) == 0
+    # control: the same peer reaches a rig opened to the network
+    assert _received(other_host, ros_domain, network=True) > 0
