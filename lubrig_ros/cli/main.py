@@ -26,20 +26,32 @@ class CommandError(Exception):
     """A user-facing failure: printed as one line, exit status 2."""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full `lubrig` argument parser."""
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The `lubrig` argument parser: every subcommand, or only `only` (its module alone imported).
+
+    A subcommand module imports what it needs (numba kernels, scipy, matplotlib, rclpy) at import
+    time, so importing all of them costs seconds; a command line that names its subcommand builds
+    the parser with that one only.
+    """
     parser = argparse.ArgumentParser(
         prog="lubrig", description="Virtual lubricated test rig (lubrig_ros)."
     )
     subparsers = parser.add_subparsers(dest="command", required=True)
-    for name in SUBCOMMAND_MODULES:
+    for name in SUBCOMMAND_MODULES if only is None else (only,):
         importlib.import_module(f"lubrig_ros.cli.{name}").register(subparsers)
     return parser
 
 
+def _subcommand(argv: Sequence[str]) -> str | None:
+    """The subcommand a command line names (its first word), if it is one of ours."""
+    first = next((a for a in argv if not a.startswith("-")), None)
+    return first if first in SUBCOMMAND_MODULES and argv and argv[0] == first else None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run `lubrig`; user errors become one line on stderr and exit status 2."""
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(_subcommand(argv))  # all of them for --help and for a wrong word
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
