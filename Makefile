@@ -53,7 +53,7 @@ test-fast: setup
 	$(PY) -m pytest -q -m "not ros and not slow" $(PYTEST_ARGS) test
 
 lint: setup
-	$(VENV)/bin/ruff check lubrig_ros test bench
+	$(VENV)/bin/ruff check lubrig_ros test bench launch
 
 # mypy on core/ and app/ (settings in pyproject.toml [tool.mypy]); must report no issues.
 typecheck: setup
