@@ -90,7 +90,7 @@ class SweepStore:
     def finished(self) -> dict[str, dict[str, Any]]:
         """Records already on disk, by point id (only ids of this spec count)."""
         ids = {p.point_id for p in self.spec.points}
-        records = {}
+        records: dict[str, dict[str, Any]] = {}
         if not self.points_dir.is_dir():
             return records
         for path in self.points_dir.glob("*.json"):

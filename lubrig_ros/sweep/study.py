@@ -32,7 +32,7 @@ def scan_spec(couplings: list[float], duration: float, name: str = "coupling-sca
     """A sweep spec with one point per (s, run) for these couplings."""
     couplings = [float(s) for s in couplings]
     runs = (STICKSLIP, *CASES)
-    points = []
+    points: list[Point] = []
     for s in couplings:
         configs = study_configs(s, duration)
         for run in runs:
