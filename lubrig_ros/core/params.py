@@ -116,6 +116,43 @@ def convention_coupling(convention: str, natural_frequency: float) -> float:
     raise ParameterError(f"convention={convention!r} is not valid; expected one of {list(CONVENTIONS)}")
 
 
+#: Physical ranges of a RUN's rig (kg, Hz, 1, N): where the model describes a bench-top rig; a value
+#: outside is a typo, not an experiment (issue 11's fuzz found natural_frequency 1000 accepted).
+#: One home: RunConfig checks them (every run: CLI, YAML, nodes) and the plant's parameter
+#: descriptors carry them (app/contract.py). RigParameters itself does not: the linear stability
+#: analysis explores damping ratios far beyond a rig's (ζ_crit reaches 1e5 with γ = 1).
+#: ζ = 0 (undamped) is allowed; ζ ≤ 2 covers over-damped rigs.
+RIG_RANGES: dict[str, tuple[float, float]] = {
+    "mass": (1e-4, 1e3),
+    "natural_frequency": (1e-2, 500.0),
+    "damping_ratio": (0.0, 2.0),
+    "normal_force": (1e-9, 10.0),
+}
+#: Output samples per natural period at the least (sample_rate >= this × f0): the integrator
+#: steps adaptively, but the analysis and the figures see only the output samples.
+MIN_SAMPLES_PER_PERIOD = 20
+
+
+RIG_RANGE_UNITS = {"mass": "kg", "natural_frequency": "Hz", "damping_ratio": "", "normal_force": "N"}
+
+
+def check_rig_ranges(rig: RigParameters) -> None:
+    """ParameterError naming the first of the rig's values outside RIG_RANGES and the range."""
+    values = {
+        "mass": rig.mass,
+        "natural_frequency": rig.natural_frequency,
+        "damping_ratio": rig.damping_ratio,
+        "normal_force": getattr(rig.friction, "normal_force", None),
+    }
+    for name, value in values.items():
+        low, high = RIG_RANGES[name]
+        if isinstance(value, (int, float)) and not low <= value <= high:
+            unit = f" {RIG_RANGE_UNITS[name]}" if RIG_RANGE_UNITS[name] else ""
+            raise ParameterError(
+                f"{name}={value!r} is outside the physical range [{low:g}, {high:g}]{unit}"
+            )
+
+
 @dataclass(frozen=True)
 class RigParameters:
     """Mass–spring–damper held against the band, plus the relative-velocity convention."""

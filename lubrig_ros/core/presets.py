@@ -15,7 +15,13 @@ import yaml
 
 from .. import __version__
 from .friction_laws import DEFAULT_LAW
-from .params import ParameterError, RigParameters, _check_positive
+from .params import (
+    MIN_SAMPLES_PER_PERIOD,
+    ParameterError,
+    RigParameters,
+    _check_positive,
+    check_rig_ranges,
+)
 from .profiles import BandProfile, profile_from_dict, profile_to_dict
 
 SECTIONS = ("name", "description", "rig", "band", "simulation")
@@ -69,6 +75,15 @@ class RunConfig:
             )
         for name in ("duration", "sample_rate", "rtol", "initial_perturbation"):
             object.__setattr__(self, name, float(getattr(self, name)))
+        check_rig_ranges(self.rig)
+        f0 = self.rig.natural_frequency
+        if self.sample_rate < MIN_SAMPLES_PER_PERIOD * f0:
+            raise ParameterError(
+                f"sample_rate={self.sample_rate:g} Hz is too low for natural_frequency={f0:g} Hz: "
+                f"expected at least {MIN_SAMPLES_PER_PERIOD} samples per period "
+                f"(sample_rate >= {MIN_SAMPLES_PER_PERIOD * f0:g} Hz, or natural_frequency <= "
+                f"{self.sample_rate / MIN_SAMPLES_PER_PERIOD:g} Hz)"
+            )
 
     @property
     def samples(self) -> int:
