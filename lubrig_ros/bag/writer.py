@@ -1,8 +1,15 @@
-"""Crash-safe rosbag2/MCAP writer on top of rosbags' rosbag2 Writer.
+"""Crash-safe rosbag2/MCAP writer on the `mcap` package's writer (chunk and summary CRC-32s).
 
-Chunks are zstd-compressed. rosbags closes a chunk every 1 MiB; :meth:`BagWriter.flush` also
-closes the pending chunk and flushes it to disk, so that after a hard kill the file is readable
-up to the last flush (see :mod:`lubrig_ros.bag.repair`, which the caller runs explicitly).
+The file is a rosbag2 bag as the rosbags writer made it before (metadata.yaml, profile ros2, one
+ros2msg schema per type, cdr channels with their offered QoS, a "rosbag2" metadata record), and
+every chunk carries the CRC-32 of its uncompressed records, the summary its CRC and the DataEnd
+record the CRC of the whole data section, so any damage is detectable (lubrig_ros.bag.verify).
+
+Bounded loss: a chunk is closed and handed to the operating system (no fsync) whenever the
+pending messages span ``flush_period_ns`` of log time (rig time with --use-sim-time) or number
+``flush_messages`` (or reach 1 MiB), so a SIGKILL or a full disk loses at most that much of what
+the writer was given. :meth:`BagWriter.flush` also fsyncs (the recorder's wall-clock flush).
+After a write error ``counts`` are re-read from the file: they are what is in the bag.
 """
 
 from __future__ import annotations
@@ -10,24 +17,45 @@ from __future__ import annotations
 import contextlib
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import BinaryIO
 
-from rosbags.interfaces import (
-    Connection,
-    Qos,
-    QosDurability,
-    QosHistory,
-    QosLiveliness,
-    QosReliability,
-    QosTime,
-)
-from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+from mcap.writer import CompressionType
+from mcap.writer import Writer as McapWriter
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
 from lubrig_ros import __version__
 from lubrig_ros.app.fileio import write_text_atomic
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import CONFIG_SIDECAR, RUN_CONFIG_KEY, VERSION_KEY, typestore
+from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, scan
+from lubrig_ros.bag.meta import (
+    MESSAGE_ENCODING,
+    PROFILE,
+    message_definition,
+    metadata_dict,
+    metadata_texts,
+    qos_text,
+)
+
+#: Default flush bound: a chunk at least every 0.2 s of log (rig) time or every 1000 messages.
+FLUSH_PERIOD_NS = 200_000_000
+FLUSH_MESSAGES = 1000
+CHUNK_BYTES = 1 << 20  # a chunk is closed at this size whatever the bound
+_RECORD_OVERHEAD = 31  # bytes of an MCAP message record besides its payload
+
+
+def _mcap_version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("mcap")
+    except Exception:
+        return "?"
+
+
+LIBRARY = f"lubrig_ros-{__version__} mcap-python/{_mcap_version()}"
 
 
 def has_leading_stamp(msgtype: str) -> bool:
@@ -73,83 +101,145 @@ def check_output_path(path: Path) -> None:
 
 
 class BagWriter:
-    """A rosbag2 bag (MCAP storage, zstd chunks) holding serialized CDR messages.
+    """A rosbag2 bag (MCAP storage, zstd chunks with CRC-32s) holding serialized CDR messages.
 
     Usage: ``w = BagWriter(path, run_config=text); w.write(topic, msgtype, t_ns, cdr); w.flush();
     w.close()``. Any OSError while writing (disk full, ...) is raised as BagError; the writer is
-    then dead (``failed``) and :meth:`close` only tries to finalize what was flushed.
+    then dead (``failed``), ``counts`` hold what the file keeps, ``lost`` what it does not, and
+    :meth:`close` only closes the file (repair is the caller's step: lubrig_ros.bag.repair).
     """
 
-    def __init__(self, path: str | Path, run_config: str | None = None) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        run_config: str | None = None,
+        flush_period_ns: int = FLUSH_PERIOD_NS,
+        flush_messages: int = FLUSH_MESSAGES,
+    ) -> None:
         self.path = Path(path)
         check_output_path(self.path)
+        if flush_period_ns <= 0 or flush_messages <= 0:
+            raise BagError(
+                f"flush bound {flush_period_ns} ns / {flush_messages} messages: expected both > 0"
+            )
         self.run_config = run_config
-        self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
-        self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-        self._writer.set_custom_data(VERSION_KEY, __version__)
+        self.flush_period_ns = int(flush_period_ns)
+        self.flush_messages = int(flush_messages)
+        self.mcap_path = self.path / f"{self.path.name}.mcap"
+        self.custom_data: dict[str, str] = {VERSION_KEY: __version__}
         if run_config is not None:
-            self._writer.set_custom_data(RUN_CONFIG_KEY, run_config)
-        self._connections: dict[str, Connection] = {}
+            self.custom_data[RUN_CONFIG_KEY] = run_config
+        self._channels: dict[str, int] = {}
+        self._topic_info: dict[str, tuple[str, str]] = {}  # topic -> (msgtype, qos text)
+        self._schemas: dict[str, int] = {}
         self.counts: dict[str, int] = {}
+        self.lost: dict[str, int] = {}
         self.failed: str | None = None
         self.closed = False
+        self.chunks_flushed = 0
+        self._pending = 0
+        self._pending_bytes = 0
+        self._pending_t0 = 0
+        self._pending_t1 = 0
+        self._start, self._end = 2**63 - 1, 0
         try:
-            self._writer.open()
+            self.path.mkdir()
+            self._stream: BinaryIO | None = open(self.mcap_path, "xb")  # noqa: SIM115 (kept open)
+            self._mcap = McapWriter(
+                self._stream, chunk_size=2**62, compression=CompressionType.ZSTD,
+                enable_crcs=True, enable_data_crcs=True,
+            )
+            self._mcap.start(profile=PROFILE, library=LIBRARY)
+            self._stream.flush()
         except OSError as exc:
             raise BagError(f"cannot create bag {str(self.path)!r}: {exc.strerror or exc}") from exc
-        except Exception as exc:  # rosbags WriterError
-            raise BagError(f"cannot create bag {str(self.path)!r}: {exc}") from exc
         if run_config is not None:
             self._guard(lambda: self._write_sidecar(run_config))
         self.last_flush = time.monotonic()
 
+    # ------------------------------------------------------------------ configuration
     def set_run_config(self, text: str) -> None:
         """Store the run configuration (YAML) in metadata custom_data."""
         if text != self.run_config:
             self._guard(lambda: self._write_sidecar(text))
         self.run_config = text
-        self._writer.set_custom_data(RUN_CONFIG_KEY, text)
+        self.custom_data[RUN_CONFIG_KEY] = text
+
+    def set_custom_data(self, key: str, value: str) -> None:
+        """Add a custom_data entry of metadata.yaml."""
+        self.custom_data[key] = value
 
     def _write_sidecar(self, text: str) -> None:
         write_text_atomic(self.path / CONFIG_SIDECAR, text, durable=True)
 
     def add_topic(self, topic: str, msgtype: str, depth: int = 1000, latched: bool = False) -> None:
         """Declare a topic (done implicitly by write with default QoS)."""
-        if topic in self._connections:
+        if topic in self._channels:
             return
         if msgtype not in typestore().fielddefs:
             raise BagError(f"topic {topic!r}: message type {msgtype!r} is unknown to the type store")
-        self._guard(
-            lambda: self._connections.__setitem__(
-                topic,
-                self._writer.add_connection(
-                    topic, msgtype, typestore=typestore(), offered_qos_profiles=[make_qos(depth, latched)]
-                ),
+        qos = qos_text([make_qos(depth, latched)])
+
+        def _add() -> None:
+            if msgtype not in self._schemas:
+                encoding, text = message_definition(msgtype)
+                self._schemas[msgtype] = self._mcap.register_schema(msgtype, encoding, text.encode())
+            self._channels[topic] = self._mcap.register_channel(
+                topic, MESSAGE_ENCODING, self._schemas[msgtype], {"offered_qos_profiles": qos}
             )
-        )
+
+        self._guard(_add)
+        self._topic_info[topic] = (msgtype, qos)
         self.counts[topic] = 0
 
+    # ------------------------------------------------------------------ writing
     def write(self, topic: str, msgtype: str, timestamp_ns: int, data: bytes) -> None:
-        """Append one serialized message with its log time."""
-        if topic not in self._connections:
+        """Append one serialized message with its log time (flushes on the bound)."""
+        if topic not in self._channels:
             self.add_topic(topic, msgtype)
-        conn = self._connections[topic]
-        self._guard(lambda: self._writer.write(conn, timestamp_ns, data))
+        cid = self._channels[topic]
+        self._guard(lambda: self._mcap.add_message(cid, timestamp_ns, bytes(data), timestamp_ns, 0))
         self.counts[topic] += 1
+        self._start, self._end = min(self._start, timestamp_ns), max(self._end, timestamp_ns)
+        if self._pending == 0:
+            self._pending_t0 = self._pending_t1 = timestamp_ns
+        else:
+            self._pending_t0 = min(self._pending_t0, timestamp_ns)
+            self._pending_t1 = max(self._pending_t1, timestamp_ns)
+        self._pending += 1
+        self._pending_bytes += len(data) + _RECORD_OVERHEAD
+        if (
+            self._pending >= self.flush_messages
+            or self._pending_t1 - self._pending_t0 >= self.flush_period_ns
+            or self._pending_bytes >= CHUNK_BYTES
+        ):
+            self._close_chunk(durable=False)
 
-    def flush(self) -> None:
-        """Close the pending chunk (if it holds messages) and push it to the disk."""
-        storage = self._writer.storage
-        if storage is None or self.failed:
-            return
+    @property
+    def pending(self) -> int:
+        """Messages given to write() and not yet handed to the operating system."""
+        return self._pending
+
+    def _close_chunk(self, durable: bool) -> None:
+        stream = self._stream
+        assert stream is not None
 
         def _flush() -> None:
-            if storage.chunk.msgs:  # rosbags McapWriter internals: pending chunk
-                storage.close_chunk()
-            storage.bio.flush()
-            os.fsync(storage.bio.fileno())
+            self._mcap.flush()  # closes the chunk (CRC-32) and its message index, stream.flush()
+            if durable:
+                os.fsync(stream.fileno())
 
+        had = self._pending
         self._guard(_flush)
+        if had:
+            self.chunks_flushed += 1
+        self._pending = self._pending_bytes = 0
+
+    def flush(self) -> None:
+        """Close the pending chunk (if it holds messages) and push it to the disk (fsync)."""
+        if self._stream is None or self.failed or self.closed:
+            return
+        self._close_chunk(durable=True)
         self.last_flush = time.monotonic()
 
     def close(self) -> None:
@@ -165,27 +255,60 @@ class BagWriter:
         if self.failed:
             self._abort()
             return
+        topics = [(t, *self._topic_info[t], self.counts[t]) for t in self._channels]
+        meta = metadata_dict(self.mcap_path.name, topics, self._start, self._end, self.custom_data)
+        yaml_text, record_text = metadata_texts(meta)
+        stream = self._stream
+        assert stream is not None
+
+        def _finish() -> None:
+            self._mcap.flush()
+            self._mcap.add_metadata("rosbag2", {"serialized_metadata": record_text})
+            self._mcap.finish()
+            stream.flush()
+            os.fsync(stream.fileno())
+            stream.close()
+            write_text_atomic(self.path / "metadata.yaml", yaml_text, durable=True)
+
         try:
-            self._writer.close()
-        except OSError as exc:
-            self.failed = f"cannot finalize bag {str(self.path)!r}: {exc.strerror or exc}"
-            self.closed = False
-            self.close()
-            raise BagError(self.failed) from exc
+            self._guard(_finish)
+        except BagError:
+            self._abort()
+            raise
+        self._stream = None
 
     def _abort(self) -> None:
-        storage = self._writer.storage
-        self._writer.storage = None
-        if storage is not None:
+        stream, self._stream = self._stream, None
+        if stream is not None:
             with contextlib.suppress(OSError):
-                storage.bio.close()
+                stream.close()
 
-    def _guard(self, action: object) -> None:
+    def _guard(self, action: Callable[[], object]) -> None:
         if self.failed:
             raise BagError(self.failed)
         try:
-            action()  # type: ignore[operator]
+            action()
         except OSError as exc:
-            self.failed = f"writing bag {str(self.path)!r} failed: {exc.strerror or exc}"
+            self._abort()
+            lost = self._recount()
+            self.failed = (
+                f"writing bag {str(self.path)!r} failed: {exc.strerror or exc} "
+                f"({lost} messages not yet flushed are lost)"
+            )
             raise BagError(self.failed) from exc
 
+    def _recount(self) -> int:
+        """After a failure: counts := messages in the file's intact chunks; returns the loss."""
+        on_disk = {t: 0 for t in self.counts}
+        if self.mcap_path.is_file():
+            topic_of: dict[int, str] = {}
+            with contextlib.suppress(OSError):
+                for rec in scan(self.mcap_path, ScanResult()):
+                    if isinstance(rec, Channel):
+                        topic_of[rec.id] = rec.topic
+                    elif isinstance(rec, Message) and rec.channel_id in topic_of:
+                        topic = topic_of[rec.channel_id]
+                        on_disk[topic] = on_disk.get(topic, 0) + 1
+        self.lost = {t: n - on_disk.get(t, 0) for t, n in self.counts.items() if n > on_disk.get(t, 0)}
+        self.counts = on_disk
+        return sum(self.lost.values())
