@@ -102,7 +102,7 @@ def test_unfinalized_bag_repaired_up_to_last_flush(tmp_path: Path) -> None:
     crashed = tmp_path / "crashed"
     shutil.copytree(tmp_path / "bag", crashed)  # the on-disk state at a hard kill
     _one_error_line(_cli("bag", "info", str(crashed)), "metadata.yaml", "repair")
-    res = _cli("bag", "repair", str(crashed))
+    res = _cli("bag", "repair", "--in-place", str(crashed))  # default: a new bag beside it
     assert res.returncode == 0, res.stderr
     assert read_rosbags(crashed)["/lubrig/displacement"] == [float(k) for k in range(N)]
     assert read_mcap(crashed)["/lubrig/displacement"] == [float(k) for k in range(N)]

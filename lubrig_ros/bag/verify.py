@@ -25,6 +25,7 @@ Nothing here raises for a damaged file: every failure is a :class:`Problem`.
 
 from __future__ import annotations
 
+import itertools
 import mmap
 import struct
 import zlib
@@ -138,15 +139,26 @@ class Verification:
         """One line: OK with what was checked, or the first problem and how many there are."""
         if self.ok:
             what = "fully verified" if self.full else "structure verified (quick)"
-            return f"bag {str(self.bag)!r} OK: {what}, {sum(self.counts.values())} messages, {self.chunks} chunks"
+            total = sum(self.counts.values())
+            return f"bag {str(self.bag)!r} OK: {what}, {total} messages, {self.chunks} chunks"
         more = f" (+{len(self.problems) - 1} more)" if len(self.problems) > 1 else ""
         return f"bag {str(self.bag)!r} is damaged: {self.problems[0].line()}{more}"
+
+
+def refuse_damaged(bag: str | Path, command: str) -> None:
+    """The cheap check `lubrig report` / `lubrig replay` run first: BagError (one line) if damaged."""
+    v = verify_bag(bag, full=False)
+    if v.structural:
+        first = v.structural[0]
+        if "does not exist" in first.text:
+            raise BagError(first.text)
+        raise BagError(f"{v.verdict()}; {command} refuses it: run `lubrig bag repair {bag}` first")
 
 
 # ----------------------------------------------------------------------------- record parsing
 
 
-class _Bad(Exception):
+class _BadError(Exception):
     """A record body does not parse."""
 
 
@@ -159,7 +171,7 @@ class _Body:
 
     def take(self, n: int) -> bytes:
         if n < 0 or self.pos + n > self.end:
-            raise _Bad(f"field of {n} bytes runs past the record end")
+            raise _BadError(f"field of {n} bytes runs past the record end")
         out = bytes(self.buf[self.pos : self.pos + n])
         self.pos += n
         return out
@@ -174,7 +186,7 @@ class _Body:
         try:
             return self.take(n).decode()
         except UnicodeDecodeError as exc:
-            raise _Bad(f"string is not UTF-8 ({exc.reason})") from None
+            raise _BadError(f"string is not UTF-8 ({exc.reason})") from None
 
     def data(self, width: str = "I") -> bytes:
         return self.take(self.u(width))
@@ -183,28 +195,28 @@ class _Body:
         n = self.u("I")
         end = self.pos + n
         if end > self.end:
-            raise _Bad("map runs past the record end")
+            raise _BadError("map runs past the record end")
         out: dict[str, str] = {}
         while self.pos < end:
             key = self.string()
             out[key] = self.string()
         if self.pos != end:
-            raise _Bad("map length disagrees with its entries")
+            raise _BadError("map length disagrees with its entries")
         return out
 
 
 def _frames(buf: bytes | memoryview, start: int, end: int) -> Iterator[tuple[int, int, int, int]]:
-    """(offset, opcode, body start, body end) of the records in buf[start:end]; _Bad on a bad frame."""
+    """(offset, opcode, body start, body end) of the records in buf[start:end]; _BadError on a bad frame."""
     pos = start
     while pos < end:
         if pos + 9 > end:
-            raise _Bad(f"record header truncated at byte {pos}")
+            raise _BadError(f"record header truncated at byte {pos}")
         op = buf[pos]
         (n,) = struct.unpack_from("<Q", buf, pos + 1)
         if not 0x01 <= op <= 0x0F:
-            raise _Bad(f"invalid record opcode 0x{op:02x} at byte {pos}")
+            raise _BadError(f"invalid record opcode 0x{op:02x} at byte {pos}")
         if pos + 9 + n > end:
-            raise _Bad(f"record (opcode 0x{op:02x}) at byte {pos} runs past the end ({n} bytes)")
+            raise _BadError(f"record (opcode 0x{op:02x}) at byte {pos} runs past the end ({n} bytes)")
         yield pos, op, pos + 9, pos + 9 + n
         pos += 9 + n
 
@@ -317,7 +329,7 @@ def _walk(v: Verification, buf: mmap.mmap, size: int, st: _State, full: bool) ->
         (n,) = struct.unpack_from("<Q", buf, 9)
         b = _Body(buf, 17, min(17 + n, size))
         profile, _library = b.string(), b.string()
-    except (_Bad, struct.error) as exc:
+    except (_BadError, struct.error) as exc:
         v.add(f"header record is unreadable: {exc}", 8)
         return
     if profile != "ros2":
@@ -373,9 +385,9 @@ def _walk_data(v: Verification, buf: mmap.mmap, size: int, pos: int, st: _State,
                 elif op in (OP_CHUNK_INDEX, OP_STATISTICS, OP_SUMMARY_OFFSET, OP_ATTACHMENT_INDEX,
                             OP_METADATA_INDEX):
                     v.add(f"summary record (opcode 0x{op:02x}) inside the data section", off)
-            except (_Bad, struct.error) as exc:
+            except (_BadError, struct.error) as exc:
                 v.add(f"record (opcode 0x{op:02x}) is unreadable: {exc}", off)
-    except _Bad as exc:
+    except _BadError as exc:
         offset = _offset_of(str(exc))
         v.add(f"data section broken: {exc} (truncated or overwritten?)", offset)
         return None
@@ -449,7 +461,7 @@ def _chunk(v: Verification, buf: mmap.mmap, off: int, b0: int, b1: int, st: _Sta
                 times.append(t)
             else:
                 v.add(f"record opcode 0x{op:02x} is not allowed inside a chunk", off)
-    except (_Bad, struct.error) as exc:
+    except (_BadError, struct.error) as exc:
         v.add(f"chunk records are unreadable: {exc}", off)
         return chunk
     chunk.decoded = True
@@ -467,7 +479,7 @@ def _message_index(v: Verification, buf: mmap.mmap, off: int, b0: int, b1: int, 
     cid = b.u("H")
     n = b.u("I")
     if n % 16 or b.pos + n != b1:
-        raise _Bad("message index length is not a multiple of 16 or disagrees with the record")
+        raise _BadError("message index length is not a multiple of 16 or disagrees with the record")
     entries = {struct.unpack_from("<QQ", buf, b.pos + 16 * k) for k in range(n // 16)}
     st.index_counts[cid] = st.index_counts.get(cid, 0) + len(entries)
     topic = st.channels.get(cid, (0, None))[1]
@@ -535,13 +547,15 @@ def _check_summary(v: Verification, buf: mmap.mmap, size: int, data_end: int, st
                         v.add(f"metadata index points to byte {moff}, no metadata record {name!r} there", off)
                 elif op == OP_SUMMARY_OFFSET:
                     gop, gstart, glen = b.u("B"), b.u("Q"), b.u("Q")
-                    if glen and not (summary_start <= gstart and gstart + glen <= footer and buf[gstart] == gop):
-                        v.add(f"summary offset for opcode 0x{gop:02x} points to byte {gstart}, no such group", off)
+                    inside = summary_start <= gstart and gstart + glen <= footer
+                    if glen and not (inside and buf[gstart] == gop):
+                        v.add(f"summary offset for opcode 0x{gop:02x} points to byte {gstart}, "
+                              "no such group", off)
                 elif op in (OP_MESSAGE, OP_CHUNK, OP_MESSAGE_INDEX, OP_DATA_END, OP_HEADER):
                     v.add(f"record opcode 0x{op:02x} is not allowed in the summary", off)
-            except (_Bad, struct.error) as exc:
+            except (_BadError, struct.error) as exc:
                 v.add(f"summary record (opcode 0x{op:02x}) is unreadable: {exc}", off)
-    except _Bad as exc:
+    except _BadError as exc:
         v.add(f"summary section broken: {exc}", _offset_of(str(exc)))
         return
     missing = [c.offset for c in st.chunks if c.offset not in seen_index]
@@ -567,7 +581,8 @@ def _statistics(v: Verification, b: _Body, off: int, st: _State) -> None:
         per[cid] = b.u("Q")
     counts = st.counts if v.full else st.index_counts
     if total != sum(counts.values()):
-        v.add(f"summary statistics count {total} messages, the data section holds {sum(counts.values())}", off)
+        v.add(f"summary statistics count {total} messages, the data section holds "
+              f"{sum(counts.values())}", off)
     for cid, count in sorted(per.items()):
         if counts.get(cid, 0) != count:
             topic = st.channels.get(cid, (0, None))[1]
@@ -598,14 +613,16 @@ def _chunk_index(v: Verification, b: _Body, off: int, chunk_at: dict[int, _Chunk
         return
     seen.add(coff)
     topic = _topics_of(st, offsets)
-    if (clen, t0, t1, comp, csize, usize) != (
-        chunk.length, chunk.start, chunk.end, chunk.compression, chunk.compressed_size, chunk.uncompressed_size
-    ):
+    actual = (chunk.length, chunk.start, chunk.end, chunk.compression, chunk.compressed_size,
+              chunk.uncompressed_size)
+    if (clen, t0, t1, comp, csize, usize) != actual:
         v.add(f"chunk index disagrees with the chunk at byte {coff}", off, topic)
     if offsets != chunk.index_offsets:
-        v.add(f"chunk index's message index offsets disagree with the file (chunk at byte {coff})", off, topic)
+        v.add(f"chunk index's message index offsets disagree with the file (chunk at byte {coff})",
+              off, topic)
     elif offsets and ilen != chunk.index_end - (coff + clen):
-        v.add(f"chunk index's message index length disagrees with the file (chunk at byte {coff})", off, topic)
+        v.add(f"chunk index's message index length disagrees with the file (chunk at byte {coff})",
+              off, topic)
 
 
 def _check_metadata(v: Verification, meta: dict[str, object]) -> None:
@@ -649,7 +666,7 @@ def _sample_period_s(meta: dict[str, object] | None) -> float | None:
 def _cdr_header(data: bytes) -> tuple[str, int, int]:
     """(endianness, stamp ns, offset after the Header) of a payload starting with a std_msgs/Header."""
     if len(data) < 16 or data[1] not in (0, 1):
-        raise _Bad("payload too short or unknown CDR encapsulation")
+        raise _BadError("payload too short or unknown CDR encapsulation")
     e = "<" if data[1] == 1 else ">"
     sec, nsec, n = struct.unpack_from(e + "iII", data, 4)
     return e, sec * 1_000_000_000 + nsec, 16 + n
@@ -711,14 +728,15 @@ def _by_index(v: Verification, rep: StreamReport, kind: str, items: list[tuple[i
     for off, _t, data in items:
         try:
             seg, first, n, stamp, _period = _indexed(kind, data)
-        except (_Bad, struct.error):
+        except (_BadError, struct.error):
             v.add("message does not decode (sample index unreadable)", off, rep.topic, CONTINUITY)
             continue
         rep.samples += n
         t_s = stamp / 1e9
         if segment is None or seg != segment:
             if segment is not None and seg < segment:
-                _note(v, rep, "backwards", off, t_s, f"segment goes back from {segment} to {seg} at {t_s:.6f} s")
+                _note(v, rep, "backwards", off, t_s,
+                      f"segment goes back from {segment} to {seg} at {t_s:.6f} s")
             elif segment is not None and first != 0:
                 rep.missing += first
                 _note(v, rep, "gap", off, t_s, f"segment {seg} starts at sample {first}: {first} samples "
@@ -730,8 +748,9 @@ def _by_index(v: Verification, rep: StreamReport, kind: str, items: list[tuple[i
             _note(v, rep, "gap", off, t_s, f"gap: {first - expected} samples missing before rig time "
                   f"{t_s:.6f} s (sample {first}, expected {expected})")
         elif first < expected:
-            _note(v, rep, "duplicate", off, t_s, f"duplicate: samples {first}..{min(expected, first + n) - 1} "
-                  f"recorded twice (rig time {t_s:.6f} s)")
+            last = min(expected, first + n) - 1
+            _note(v, rep, "duplicate", off, t_s,
+                  f"duplicate: samples {first}..{last} recorded twice (rig time {t_s:.6f} s)")
         if stamp < last_stamp:
             _note(v, rep, "backwards", off, t_s, f"stamp goes back to {t_s:.6f} s")
         expected, last_stamp = max(expected, first + n), max(last_stamp, stamp)
@@ -745,7 +764,7 @@ def _by_spacing(v: Verification, rep: StreamReport, items: list[tuple[int, int, 
         return
     times = [t for _o, t, _d in items]
     if period is None:
-        steps = sorted(b - a for a, b in zip(times, times[1:], strict=False) if b > a)
+        steps = sorted(b - a for a, b in itertools.pairwise(times) if b > a)
         if not steps:
             rep.method = "unchecked: log times do not advance"
             return
@@ -764,7 +783,8 @@ def _by_spacing(v: Verification, rep: StreamReport, items: list[tuple[int, int, 
         step = k - prev
         if step > 1:
             rep.missing += step - 1
-            _note(v, rep, "gap", off, t / 1e9, f"gap: {step - 1} samples missing before log time {t / 1e9:.6f} s")
+            _note(v, rep, "gap", off, t / 1e9,
+                  f"gap: {step - 1} samples missing before log time {t / 1e9:.6f} s")
         elif step == 0:
             _note(v, rep, "duplicate", off, t / 1e9, f"duplicate log time {t / 1e9:.6f} s")
         elif step < 0:

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import argparse
 
+from lubrig_ros.bag.verify import refuse_damaged
 from lubrig_ros.nodes import replay
 
 
 def _run(args: argparse.Namespace) -> int:
     try:
+        refuse_damaged(args.bag, "lubrig replay")  # the cheap part of `lubrig bag check` first
         return replay.run(args)
     except replay.BagError as exc:
         raise ValueError(str(exc)) from exc

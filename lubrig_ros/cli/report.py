@@ -5,12 +5,18 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..bag.errors import BagError
+from ..bag.verify import refuse_damaged
 from ..report import write_report
 
 
 def run(args: argparse.Namespace) -> int:
     """Entry of `lubrig report`."""
     bag = Path(args.bag)
+    try:  # the cheap part of `lubrig bag check` first: a damaged bag is refused in one line
+        refuse_damaged(bag, "lubrig report")
+    except BagError as exc:
+        raise ValueError(str(exc)) from None
     out = Path(args.out) if args.out else bag.parent / "report"
     page = write_report(bag, out)
     print(f"report: {page}")
