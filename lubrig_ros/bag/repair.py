@@ -161,6 +161,11 @@ def repair_bag(
                     ch = channels[rec.channel_id]
                     if run_config is None and ch.topic.endswith(RUN_CONFIG_TOPIC_SUFFIX):
                         run_config = cdr_string(rec.data)
+            if not channels:
+                raise BagError(
+                    f"bag {str(bag)!r}: nothing to rebuild from, no intact chunk in its data section "
+                    f"({result.stop_reason or 'no channel definition found'})"
+                )
             custom = dict(old_custom)
             sidecar = bag_dir / CONFIG_SIDECAR
             if RUN_CONFIG_KEY not in custom and sidecar.is_file():

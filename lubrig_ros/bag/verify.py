@@ -18,8 +18,9 @@ offset and topic (the first one is what the CLI names):
   against the sample period (the run configuration's sample_rate, else the median step) when
   the log times are on that grid (rig time); receive-time log times are noted as unchecked.
 
-``full=False`` is the cheap part (``lubrig report`` and ``lubrig replay`` run it first): record
-frames, chunk headers, footer, summary and metadata.yaml, without decompressing any chunk.
+``continuity=False`` is the part ``lubrig report`` and ``lubrig replay`` run first (no message is
+decoded); ``full=False`` is cheaper still: record frames, chunk headers, footer, summary and
+metadata.yaml, without decompressing any chunk.
 Nothing here raises for a damaged file: every failure is a :class:`Problem`.
 """
 
@@ -146,12 +147,16 @@ class Verification:
 
 
 def refuse_damaged(bag: str | Path, command: str) -> None:
-    """The cheap check `lubrig report` / `lubrig replay` run first: BagError (one line) if damaged."""
-    v = verify_bag(bag, full=False)
+    """The cheap part `lubrig report` / `lubrig replay` run first: BagError (one line) if damaged.
+
+    Everything of the file (CRCs, index, summary, footer, metadata.yaml), not the continuity of
+    the samples (a bag with gaps is reported on; `lubrig bag info` shows them).
+    """
+    v = verify_bag(bag, full=True, continuity=False)
     if v.structural:
         first = v.structural[0]
-        if "does not exist" in first.text:
-            raise BagError(first.text)
+        if "does not exist" in first.text or "not a bag" in first.text:
+            raise BagError(f"{command}: {first.text}")
         raise BagError(f"{v.verdict()}; {command} refuses it: run `lubrig bag repair {bag}` first")
 
 
@@ -267,13 +272,22 @@ def _channel(b: _Body) -> tuple[int, tuple[int, str, str, dict[str, str]]]:
 # ----------------------------------------------------------------------------- the walk
 
 
-def verify_bag(bag: str | Path, full: bool = True) -> Verification:
-    """Check bag (a directory or an .mcap file); see the module docstring. Never raises BagError."""
+def verify_bag(bag: str | Path, full: bool = True, continuity: bool = True) -> Verification:
+    """Check bag (a directory or an .mcap file); see the module docstring. Never raises BagError.
+
+    full=False: no chunk is decompressed (frames, chunk headers, summary, footer, metadata.yaml);
+    continuity=False: everything of the file, not the samples' continuity.
+    """
     bag = Path(bag)
     v = Verification(bag, full=full)
     meta: dict[str, object] | None = None
     if not bag.exists():
         v.add(f"bag {str(bag)!r} does not exist: give a bag directory or an .mcap file")
+        return v
+    if bag.is_dir() and not (bag / "metadata.yaml").exists() and len(list(bag.glob("*.mcap"))) != 1:
+        found = len(list(bag.glob("*.mcap")))
+        v.add(f"expected one .mcap file in the bag directory, found {found} (and no metadata.yaml): "
+              "not a bag")
         return v
     if bag.is_dir():
         meta_path = bag / "metadata.yaml"
@@ -310,7 +324,7 @@ def verify_bag(bag: str | Path, full: bool = True) -> Verification:
                 }
                 if meta is not None:
                     _check_metadata(v, meta)
-                if full:
+                if full and continuity:
                     _continuity(v, st, meta)
     except OSError as exc:
         v.add(f"cannot read {str(v.mcap)!r}: {exc.strerror or exc}")

@@ -18,8 +18,8 @@ from lubrig_ros.bag.verify import Verification, verify_bag
 
 def _problem_line(v: Verification) -> str:
     first = v.problems[0]
-    if "does not exist" in first.text:
-        return first.text
+    if "does not exist" in first.text or "not a bag" in first.text:
+        return f"bag {str(v.bag)!r}: {first.text}"
     return f"{v.verdict()}; run `lubrig bag repair {v.bag}`"
 
 
