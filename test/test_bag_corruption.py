@@ -287,7 +287,9 @@ def test_repair_keeps_every_message_of_the_chunks_that_verify(matrix: dict, name
 def test_intact_bag_passes_and_repair_leaves_it(matrix: dict, tmp_path: Path) -> None:
     bag = tmp_path / "bag"
     shutil.copytree(matrix["original"], bag)
-    for args in (["bag", "check", str(bag)], ["bag", "info", "--verify", str(bag)], ["bag", "repair", str(bag)]):
+    commands = (["bag", "check", str(bag)], ["bag", "info", "--verify", str(bag)],
+                ["bag", "repair", str(bag)])
+    for args in commands:
         res = subprocess.run([sys.executable, "-m", "lubrig_ros.cli.main", *args], capture_output=True,
                              text=True, timeout=TIMEOUT, check=False)
         assert res.returncode == 0, res.stderr
