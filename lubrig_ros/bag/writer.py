@@ -263,6 +263,8 @@ class BagWriter:
 
         def _finish() -> None:
             self._mcap.flush()
+            self.chunks_flushed += 1 if self._pending else 0
+            self._pending = self._pending_bytes = 0
             self._mcap.add_metadata("rosbag2", {"serialized_metadata": record_text})
             self._mcap.finish()
             stream.flush()
