@@ -38,7 +38,13 @@ from lubrig_ros.app.contract import select_topics as _select_topics
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import cdr_string
 from lubrig_ros.bag.repair import repair_bag
-from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, serialize_string
+from lubrig_ros.bag.writer import (
+    FLUSH_MESSAGES,
+    FLUSH_PERIOD_NS,
+    BagWriter,
+    has_leading_stamp,
+    serialize_string,
+)
 from lubrig_ros.nodes.script import run_script
 
 BATCH_PERIOD_S = 0.02
@@ -149,6 +155,8 @@ class Recorder:
         use_sim_time: bool,
         flush_interval: float,
         namespace: str = DEFAULT_NAMESPACE,
+        flush_period: float = FLUSH_PERIOD_NS / 1e9,
+        flush_messages: int = FLUSH_MESSAGES,
     ) -> None:
         config_spec = documented_topics(namespace)[resolve(namespace, "run_config")]
         if run_config is not None:  # the given configuration is written, not subscribed
@@ -166,7 +174,7 @@ class Recorder:
         ]
         self.use_sim_time = use_sim_time
         self.flush_interval = flush_interval
-        self.writer = BagWriter(output, run_config)
+        self.writer = BagWriter(output, run_config, round(flush_period * 1e9), flush_messages)
         self.config_topic = config_spec
         if run_config is not None:
             self.writer.add_topic(config_spec.name, config_spec.msgtype, 1, True)
@@ -350,7 +358,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", type=Path, help="YAML file of the run configuration to store")
     p.add_argument("--use-sim-time", action="store_true", help="log times from rig time (/clock)")
     p.add_argument("--workers", type=int, default=0, help="subscriber processes (0: auto)")
-    p.add_argument("--flush-interval", type=float, default=0.5, help="seconds between chunk flushes")
+    p.add_argument("--flush-interval", type=float, default=0.5,
+                   help="wall-clock seconds between flushes to the disk (fsync)")
+    p.add_argument("--flush-period", type=float, default=FLUSH_PERIOD_NS / 1e9,
+                   help="close a chunk once its messages span this many seconds of log (rig) time: "
+                   "the most a SIGKILL or a full disk loses (default 0.2)")
+    p.add_argument("--flush-messages", type=int, default=FLUSH_MESSAGES,
+                   help=f"... or once it holds this many messages (default {FLUSH_MESSAGES})")
     p.add_argument("--duration", type=float, help="stop after this many seconds")
     return p
 
@@ -374,6 +388,11 @@ def run(args: argparse.Namespace) -> int:
             f"--workers {args.workers} / --flush-interval {args.flush_interval}: "
             "expected workers >= 0 and flush interval > 0"
         )
+    if not args.flush_period > 0 or args.flush_messages < 1:
+        raise ValueError(
+            f"--flush-period {args.flush_period} / --flush-messages {args.flush_messages}: "
+            "expected seconds > 0 and messages >= 1"
+        )
     if args.duration is not None and args.duration <= 0:
         raise ValueError(f"--duration {args.duration} is invalid: expected seconds > 0")
     run_config = None
@@ -386,7 +405,7 @@ def run(args: argparse.Namespace) -> int:
     output = args.output or Path(time.strftime("lubrig_%Y%m%d_%H%M%S"))
     recorder = Recorder(
         output, specs, args.workers or auto_workers(specs), run_config, args.use_sim_time,
-        args.flush_interval, args.namespace,
+        args.flush_interval, args.namespace, args.flush_period, args.flush_messages,
     )
     should_stop = [False]
 
