@@ -244,7 +244,8 @@ def _scan_buffer(buf: mmap.mmap, size: int, result: ScanResult) -> Iterator[Sche
                 records = [_parse(o, b) for o, b in _iter_inner(raw)]
             except (ValueError, struct.error, zstd.ZstdError, UnicodeDecodeError) as exc:
                 result.damaged_chunks.append(f"chunk at byte {start}: {exc}")
-                last_damage = Damage(start, f"chunk {exc}", offset)
+                reason = str(exc) if str(exc).startswith("chunk") else f"chunk: {exc}"
+                last_damage = Damage(start, reason, offset)
                 result.damage.append(last_damage)
                 continue
             result.chunks += 1

@@ -69,7 +69,7 @@ class Problem:
         if self.offset is not None:
             where.append(f"at byte {self.offset}")
         if self.topic:
-            where.append(f"topic {self.topic}")
+            where.append(f"{'topics' if ', ' in self.topic else 'topic'} {self.topic}")
         return f"{', '.join(where)}: {self.text}" if where else self.text
 
 
@@ -351,6 +351,11 @@ def _walk(v: Verification, buf: mmap.mmap, size: int, st: _State, full: bool) ->
     pos = 17 + n
     data_end = _walk_data(v, buf, size, pos, st, full)
     v.chunks = len(st.chunks)
+    topics = {c.offset: _topics_of(st, c.index_offsets) for c in st.chunks}
+    v.problems = [  # a damaged chunk is named by the topics its message index lists
+        Problem(p.text, p.offset, topics[p.offset], p.kind) if p.topic is None and p.offset in topics else p
+        for p in v.problems
+    ]
     if st.zero_crc:
         v.notes.append(
             f"{st.zero_crc} chunk(s) carry no CRC (written before issue 15): damage inside them "
