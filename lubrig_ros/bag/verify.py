@@ -253,6 +253,7 @@ class _State:
     start: int = 2**63 - 1
     end: int = 0
     zero_crc: int = 0
+    keep_samples: bool = True  # payloads kept for the continuity check
 
 
 def _schema(b: _Body) -> tuple[int, tuple[str, str, bytes]]:
@@ -314,7 +315,7 @@ def verify_bag(bag: str | Path, full: bool = True, continuity: bool = True) -> V
                 v.add("the .mcap file is empty", 0)
                 return v
             with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
-                st = _State()
+                st = _State(keep_samples=full and continuity)
                 _walk(v, buf, size, st, full)
                 names = {cid: ch[1] for cid, ch in st.channels.items()}
                 counts = st.counts if full else st.index_counts
@@ -386,6 +387,8 @@ def _walk_data(v: Verification, buf: mmap.mmap, size: int, pos: int, st: _State,
                     cid, ch = _channel(_Body(buf, b0, b1))
                     st.channels.setdefault(cid, ch)
                 elif op == OP_CHUNK:
+                    if last_chunk is not None:
+                        last_chunk.messages = {}  # compared with its message index already
                     last_chunk = _chunk(v, buf, off, b0, b1, st, full)
                 elif op == OP_MESSAGE_INDEX:
                     _message_index(v, buf, off, b0, b1, st, last_chunk, full)
@@ -476,7 +479,9 @@ def _chunk(v: Verification, buf: mmap.mmap, off: int, b0: int, b1: int, st: _Sta
                     v.add(f"message on undefined channel {cid} inside the chunk", off)
                 chunk.messages.setdefault(cid, set()).add((t, roff))
                 st.counts[cid] = st.counts.get(cid, 0) + 1
-                st.samples.setdefault(cid, []).append((off, t, raw[r0 + 22 : r1]))
+                if st.keep_samples:
+                    # the leading fields are enough (header, indices, the first array's length)
+                    st.samples.setdefault(cid, []).append((off, t, raw[r0 + 22 : min(r1, r0 + 22 + 512)]))
                 times.append(t)
             else:
                 v.add(f"record opcode 0x{op:02x} is not allowed inside a chunk", off)
@@ -580,7 +585,7 @@ def _check_summary(v: Verification, buf: mmap.mmap, size: int, data_end: int, st
     missing = [c.offset for c in st.chunks if c.offset not in seen_index]
     if missing:
         v.add(f"{len(missing)} chunk(s) have no chunk index in the summary", missing[0],
-              _topics_of(st, next(c for c in st.chunks if c.offset == missing[0]).messages))
+              _topics_of(st, next(c for c in st.chunks if c.offset == missing[0]).index_offsets))
     if not stats_seen:
         v.add("the summary has no statistics record", summary_start)
     if not v.structural:
