@@ -46,6 +46,7 @@ OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_ATTACHMENT, OP_ATTACHMENT_INDEX = 0x07, 0x0
 OP_STATISTICS, OP_METADATA, OP_METADATA_INDEX, OP_SUMMARY_OFFSET, OP_DATA_END = 0x0B, 0x0C, 0x0D, 0x0E, 0x0F
 FOOTER_BYTES = 1 + 8 + 8 + 8 + 4  # footer record; the file ends with it and the magic
 STRUCTURE, CONTINUITY = "structure", "continuity"
+Buffer = bytes | memoryview | mmap.mmap
 INDEXED_TYPES = {
     "lubrig_interfaces/msg/RigState": "sample",
     "lubrig_interfaces/msg/RigStateBlock": "block",
@@ -170,7 +171,7 @@ class _BadError(Exception):
 class _Body:
     """Little-endian reader over one record body."""
 
-    def __init__(self, buf: bytes | memoryview, start: int = 0, end: int | None = None) -> None:
+    def __init__(self, buf: Buffer, start: int = 0, end: int | None = None) -> None:
         self.buf, self.pos = buf, start
         self.end = len(buf) if end is None else end
 
@@ -210,7 +211,7 @@ class _Body:
         return out
 
 
-def _frames(buf: bytes | memoryview, start: int, end: int) -> Iterator[tuple[int, int, int, int]]:
+def _frames(buf: Buffer, start: int, end: int) -> Iterator[tuple[int, int, int, int]]:
     """(offset, opcode, body start, body end) of the records in buf[start:end]; _BadError on a bad frame."""
     pos = start
     while pos < end:
@@ -286,8 +287,8 @@ def verify_bag(bag: str | Path, full: bool = True, continuity: bool = True) -> V
         v.add(f"bag {str(bag)!r} does not exist: give a bag directory or an .mcap file")
         return v
     if bag.is_dir() and not (bag / "metadata.yaml").exists() and len(list(bag.glob("*.mcap"))) != 1:
-        found = len(list(bag.glob("*.mcap")))
-        v.add(f"expected one .mcap file in the bag directory, found {found} (and no metadata.yaml): "
+        n_mcap = len(list(bag.glob("*.mcap")))
+        v.add(f"expected one .mcap file in the bag directory, found {n_mcap} (and no metadata.yaml): "
               "not a bag")
         return v
     if bag.is_dir():
@@ -305,8 +306,7 @@ def verify_bag(bag: str | Path, full: bool = True, continuity: bool = True) -> V
         if meta is not None or not bag.is_dir():
             v.add(str(exc))
         else:
-            found = sorted(bag.glob("*.mcap"))
-            v.add(f"expected one .mcap file in the bag directory, found {len(found)}")
+            v.add(f"expected one .mcap file in the bag directory, found {len(list(bag.glob('*.mcap')))}")
         return v
     try:
         with open(v.mcap, "rb") as f:
