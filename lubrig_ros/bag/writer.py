@@ -109,6 +109,9 @@ class BagWriter:
     :meth:`close` only closes the file (repair is the caller's step: lubrig_ros.bag.repair).
     """
 
+    FLUSH_PERIOD_NS = FLUSH_PERIOD_NS  # the default bound, for callers' option defaults
+    FLUSH_MESSAGES = FLUSH_MESSAGES
+
     def __init__(
         self,
         path: str | Path,

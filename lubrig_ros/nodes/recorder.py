@@ -38,13 +38,7 @@ from lubrig_ros.app.contract import select_topics as _select_topics
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import cdr_string
 from lubrig_ros.bag.repair import repair_bag
-from lubrig_ros.bag.writer import (
-    FLUSH_MESSAGES,
-    FLUSH_PERIOD_NS,
-    BagWriter,
-    has_leading_stamp,
-    serialize_string,
-)
+from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, serialize_string
 from lubrig_ros.nodes.script import run_script
 
 BATCH_PERIOD_S = 0.02
@@ -155,8 +149,8 @@ class Recorder:
         use_sim_time: bool,
         flush_interval: float,
         namespace: str = DEFAULT_NAMESPACE,
-        flush_period: float = FLUSH_PERIOD_NS / 1e9,
-        flush_messages: int = FLUSH_MESSAGES,
+        flush_period: float = BagWriter.FLUSH_PERIOD_NS / 1e9,
+        flush_messages: int = BagWriter.FLUSH_MESSAGES,
     ) -> None:
         config_spec = documented_topics(namespace)[resolve(namespace, "run_config")]
         if run_config is not None:  # the given configuration is written, not subscribed
@@ -360,11 +354,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=0, help="subscriber processes (0: auto)")
     p.add_argument("--flush-interval", type=float, default=0.5,
                    help="wall-clock seconds between flushes to the disk (fsync)")
-    p.add_argument("--flush-period", type=float, default=FLUSH_PERIOD_NS / 1e9,
+    p.add_argument("--flush-period", type=float, default=BagWriter.FLUSH_PERIOD_NS / 1e9,
                    help="close a chunk once its messages span this many seconds of log (rig) time: "
                    "the most a SIGKILL or a full disk loses (default 0.2)")
-    p.add_argument("--flush-messages", type=int, default=FLUSH_MESSAGES,
-                   help=f"... or once it holds this many messages (default {FLUSH_MESSAGES})")
+    p.add_argument("--flush-messages", type=int, default=BagWriter.FLUSH_MESSAGES,
+                   help=f"... or once it holds this many messages (default {BagWriter.FLUSH_MESSAGES})")
     p.add_argument("--duration", type=float, help="stop after this many seconds")
     return p
 
