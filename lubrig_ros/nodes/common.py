@@ -19,6 +19,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from ..app import contract
 from ..app.contract import DEFAULT_NAMESPACE, NodeParameter
@@ -92,7 +93,15 @@ def declare(node: Node, spec: NodeParameter, default: Any = None) -> Any:
     and what is valid), then the full descriptor with the range is applied (`describe`).
     """
     value = spec.default if spec.default is not None else default
-    declared = node.declare_parameter(spec.name, value, ParameterDescriptor(description=spec.description))
+    text = ParameterDescriptor(description=spec.description)
+    if spec.type == "string_array":
+        # an empty list would be declared as a byte array: declare the type, no value means []
+        declared = node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, text)
+        given = declared.value if declared.value is not None else list(value or ())
+        checked = spec.check(list(given))
+        node.set_descriptor(spec.name, describe(spec, node.describe_parameter(spec.name)))
+        return checked
+    declared = node.declare_parameter(spec.name, value, text)
     checked = spec.check(declared.value)
     node.set_descriptor(spec.name, describe(spec, node.describe_parameter(spec.name)))
     return checked
