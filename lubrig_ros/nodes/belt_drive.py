@@ -221,11 +221,17 @@ class BeltDrive(Node):
                 self._waiting_logged = now
                 self.get_logger().info(f"sim: waiting for flow_progress from {missing}")
             return False
-        if (
-            now - self.seen_at < self.start_delay
-            or self.publisher.get_subscription_count() == 0
-            or not common.subscribed_by(self, [self.publisher.topic_name], self.wait_for_subscriber)
-        ):
+        waiting = None
+        if now - self.seen_at < self.start_delay:
+            return False
+        if self.publisher.get_subscription_count() == 0:
+            waiting = "the plant's subscription to the band blocks"
+        elif not common.subscribed_by(self, [self.publisher.topic_name], self.wait_for_subscriber):
+            waiting = f"a subscription of {self.wait_for_subscriber}* to the band blocks"
+        if waiting is not None:
+            if now - self._waiting_logged > 5.0:
+                self._waiting_logged = now
+                self.get_logger().info(f"sim: waiting for {waiting}")
             return False
         self.started = True
         self.get_logger().info("sim: every participant reported; sending band samples")

@@ -197,7 +197,7 @@ class Plant(Node):
         silent, so belt_drive does not start and no sample is published before it is recorded.
         """
         if not self._announced:
-            outputs = [self.pub_block, self.pub_progress, *self.pub_scalars]
+            outputs = [self.pub_block, *self.pub_scalars]
             if self.pub_clock is not None:
                 outputs.append(self.pub_clock)
             if not common.subscribed_by(self, [p.topic_name for p in outputs], self.wait_for_subscriber):
