@@ -56,7 +56,7 @@ def test_two_sim_rigs_on_one_domain_stay_apart(procs, probe):
         procs.node("belt_drive", *ros, case=case, duration=duration,
                    required_consumers=f"['{me}']")
     assert probe.wait_for(lambda: all(_complete(probe, ns) for ns in rigs), 120), procs.logs()
-    for ns, (case, duration) in rigs.items():
+    for ns, (_case, duration) in rigs.items():
         blocks = probe.messages[f"{ns}/state_block"]
         n = round(duration * 1000)
         assert probe.wait_for(lambda b=blocks, n=n: sum(len(x.displacement) for x in b) >= n + 1, 30)

@@ -9,10 +9,10 @@ taken and no block can be lost on the way to it.
 from __future__ import annotations
 
 import numpy as np
-from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress, RigStateBlock
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, String
 
+from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
 from lubrig_ros.app import contract
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate

@@ -419,7 +419,8 @@ class PlantSession:
                 band = band[good]
             if self.mode != "sim":
                 if band.size:
-                    self.rt_overflow += max(0, len(self._rt_queue) + band.size - self._rt_queue.maxlen)
+                    room = (self._rt_queue.maxlen or 0) - len(self._rt_queue)
+                    self.rt_overflow += max(0, band.size - room)
                     self._rt_queue.extend(band.tolist())
                     self.latest_band_recv = now
                     self.new_band = True

@@ -20,10 +20,11 @@ import math
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from lubrig_interfaces.msg import RigState, RigStateBlock, StabilityFlags, WaveletFrame
 from rclpy.node import Node
 from sensor_msgs.msg import Image
 from std_msgs.msg import Bool, Float64, Float64MultiArray, MultiArrayDimension, String, UInt8
+
+from lubrig_interfaces.msg import RigState, RigStateBlock, StabilityFlags, WaveletFrame
 
 from ..app import cdr
 from ..app.analysis_session import AnalysisOutput, AnalysisSession, AnalysisSettings
@@ -170,10 +171,10 @@ class Analysis(Node):
         if out.oscillation_growing is not None:
             p["oscillation_growing"].publish(Bool(data=out.oscillation_growing))
         if out.statuses:
-            array = DiagnosticArray()
-            array.header.stamp = self.get_clock().now().to_msg()
-            array.status = [common.diagnostic_status(s) for s in out.statuses]
-            p["/diagnostics"].publish(array)
+            diagnostics = DiagnosticArray()
+            diagnostics.header.stamp = now
+            diagnostics.status = [common.diagnostic_status(s) for s in out.statuses]
+            p["/diagnostics"].publish(diagnostics)
 
 
 def main(args: list[str] | None = None) -> int:

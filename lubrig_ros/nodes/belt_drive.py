@@ -19,12 +19,12 @@ import threading
 import time
 
 import numpy as np
-
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
 from std_msgs.msg import Float64
+
+from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
 
 from ..app import cdr
 from ..app.contract import BELT_DRIVE_PARAMETERS, flow_window_problem

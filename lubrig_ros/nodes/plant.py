@@ -25,15 +25,15 @@ import sys
 import threading
 
 import numpy as np
-
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress, RigState, RigStateBlock
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64, String
 from std_srvs.srv import SetBool, Trigger
+
+from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress, RigState, RigStateBlock
 
 from ..app import cdr, contract
 from ..app.plant_session import (
@@ -50,7 +50,6 @@ from ..app.plant_session import (
 from ..core.params import ParameterError
 from . import common
 from .interfaces import create_publisher, create_service, create_subscription
-
 
 HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
 BLOCK_FIELDS = (

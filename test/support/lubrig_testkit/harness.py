@@ -340,7 +340,6 @@ class Probe:
         `delay`: seconds slept in every block callback (a deliberately slow consumer).
         """
         from lubrig_interfaces.msg import FlowProgress, RigStateBlock
-
         from lubrig_ros.app import contract
         from lubrig_ros.nodes.interfaces import qos_profile
 
