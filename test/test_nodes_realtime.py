@@ -55,7 +55,7 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     ):
         probe.subscribe(f"{NS}/{name}", msg_type)
     probe.subscribe("/diagnostics", DiagnosticArray)
-    started = time.monotonic()
+    started, wall_start = time.monotonic(), time.time()
     procs.node("plant", mode="realtime", diagnostics_period=0.2)
     procs.node("belt_drive", mode="realtime")
     procs.node("analysis", window=256, n_scales=16, publish_period=0.2)
@@ -70,10 +70,11 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     assert {m.segment for m in states} == {0}
     assert all(math.isfinite(m.displacement) and math.isfinite(m.velocity) for m in states)
     assert all(math.isfinite(m.relative_velocity) and m.band_velocity == 1e-7 for m in states[1:])
-    # stamps are ROS time (here the wall clock): within a second of it on arrival, never backwards
+    # stamps are ROS time (here the wall clock, same machine): between the start of the test and
+    # now (a busy probe takes them late, so not compared with their arrival), never backwards
     stamps = np.array([_stamp(m) for m in states])
-    arrived = time.time() - (time.monotonic() - np.array(probe.times[state][: len(states)]))
-    assert np.all(np.diff(stamps) >= 0) and np.all(np.abs(stamps - arrived) < 1.0)
+    assert np.all(np.diff(stamps) >= 0)
+    assert wall_start - 1.0 <= stamps[0] and stamps[-1] <= time.time() + 1.0, (wall_start, stamps[[0, -1]])
     # paced by the wall clock: rig time is never ahead of it (a lagging plant is a bench figure)
     assert index[-1] / 1000 <= elapsed, (index[-1], elapsed)
     assert len(probe.messages[band]) <= 1000 * elapsed + 1

@@ -42,7 +42,7 @@ def test_rig_in_loop_bad_input_and_staleness(procs, probe):
     probe.subscribe(f"{NS}/displacement", Float64)
     probe.subscribe(f"{NS}/state", RigState)
     probe.subscribe("/diagnostics", DiagnosticArray)
-    started = time.monotonic()
+    started, wall_start = time.monotonic(), time.time()
     # scalar_topics: the per-quantity Float64 topics for simple tools, beside RigState
     plant = procs.node("plant", mode="rig_in_loop", diagnostics_period=0.25, scalar_topics=True)
     pub = probe.publisher(f"{NS}/band_velocity", Float64, common.STREAM_QOS)
@@ -88,10 +88,9 @@ def test_rig_in_loop_bad_input_and_staleness(procs, probe):
         assert probe.wait_for_more(state, 1000, 30)
         _on_grid_in_order(_rig_times(probe, state))
         assert _rig_times(probe, state)[-1] <= time.monotonic() - started
-        # stamped with ROS time: within a second of the wall clock when it arrived
+        # stamped with ROS time (the wall clock here): between the start of the test and now
         stamp = probe.messages[state][-1].header.stamp
-        arrived = time.time() - (time.monotonic() - probe.times[state][-1])
-        assert abs(stamp.sec + 1e-9 * stamp.nanosec - arrived) < 1.0
+        assert wall_start - 1.0 <= stamp.sec + 1e-9 * stamp.nanosec <= time.time() + 1.0
         # a gap in the input: the plant keeps publishing, holds the last good value, reports stale
         gap.set()
         assert probe.wait_for(lambda: band()["stale"] == "true", 30), band()

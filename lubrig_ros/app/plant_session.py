@@ -315,7 +315,8 @@ class PlantSession:
         try:
             config_from(self.base, {**current, **relevant})
         except (ParameterError, ValueError, TypeError) as exc:
-            return str(exc)
+            given = ", ".join(f"{k}={v!r}" for k, v in sorted(relevant.items()))
+            return f"{given} refused: {exc}"  # names the parameters, not only the field
         return None
 
     def reset(self, config: RunConfig) -> None:

@@ -15,6 +15,8 @@ invalid updates are rejected with the reason and the running profile kept.
 from __future__ import annotations
 
 import array
+import copy
+import math
 import threading
 import time
 
@@ -126,8 +128,8 @@ class BeltDrive(Node):
     def _complete_profile_update(self, params: list[Parameter]) -> list[Parameter]:
         """A change of profile.kind also sets the new kind's own fields (no value of another kind)."""
         updates = {p.name.removeprefix("profile."): p.value for p in params if p.name.startswith("profile.")}
-        if "kind" not in updates:
-            return params
+        if not isinstance(updates.get("kind"), str):
+            return params  # no kind change, or a kind that is no string (refused with its reason)
         extra = self.profile_parameters.completed(updates)
         given = {p.name for p in params}
         return params + [
@@ -151,18 +153,24 @@ class BeltDrive(Node):
                         successful=False,
                         reason=f"profile.{name}={value!r} is not valid; expected a string",
                     )
-            elif not isinstance(value, float | int) or isinstance(value, bool):
+            elif not isinstance(value, float | int) or isinstance(value, bool) or not math.isfinite(value):
                 return SetParametersResult(
-                    successful=False, reason=f"profile.{name}={value!r} is not valid; expected a number"
+                    successful=False,
+                    reason=f"profile.{name}={value!r} is not valid; expected a finite number",
                 )
+        given = ", ".join(f"profile.{k}={v!r}" for k, v in updates.items())
+        before = copy.deepcopy(self.profile_parameters)  # a refused update leaves no trace
         try:
             profile = self.profile_parameters.apply(updates)
         except (ParameterError, ValueError, TypeError) as exc:
-            self.get_logger().warning(f"profile update rejected: {exc}")
-            return SetParametersResult(successful=False, reason=str(exc))
+            self.profile_parameters = before
+            reason = f"{given} refused: {exc}"
+            self.get_logger().warning(f"profile update rejected: {reason}")
+            return SetParametersResult(successful=False, reason=reason)
         problem = self._band_problem(profile)
         if problem is not None:
-            reason = f"profile {profile_to_dict(profile)} refused: {problem}"
+            self.profile_parameters = before
+            reason = f"{given} refused: profile {profile_to_dict(profile)}: {problem}"
             self.get_logger().warning(f"profile update rejected: {reason}")
             return SetParametersResult(successful=False, reason=reason)
         self.profile = profile

@@ -99,6 +99,8 @@ def declare(node: Node, spec: NodeParameter, default: Any = None) -> Any:
         declared = node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, text)
         given = declared.value if declared.value is not None else list(value or ())
         checked = spec.check(list(given))
+        if declared.value is None:  # not given: initialize it (an uninitialized one cannot be read)
+            node.set_parameters([Parameter(spec.name, Parameter.Type.STRING_ARRAY, checked)])
         node.set_descriptor(spec.name, describe(spec, node.describe_parameter(spec.name)))
         return checked
     declared = node.declare_parameter(spec.name, value, text)
