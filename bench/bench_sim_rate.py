@@ -8,7 +8,10 @@ skipped) for a short and a long run of rig time and prints the MARGINAL rate, (l
 seconds per (wall_long - wall_short) wall seconds, with the start-up (processes, imports,
 discovery, the recorder's readiness, shutdown: the wall time of a zero-length run, extrapolated)
 reported separately; next to core.run.simulate's own rate on the same configuration. Wall times
-are of the whole `lubrig rig` process. Also without the recorder (`--no-recorder`).
+are of the whole `lubrig rig` process. Also without the recorder (`--no-recorder`). On a shared,
+loaded machine the start-up varies by seconds from run to run, which swamps the difference of
+the whole-command times; the run phase (belt_drive's first band block to the plant's "run
+complete", from the node logs' ROS time stamps) is printed too, and its marginal rate.
 
 Part 2 (--blocks): plant + belt_drive + a probe process that is a required consumer of the flow
 control (it takes every state block and reports flow_progress, like the recorder), for each
@@ -27,6 +30,21 @@ import time
 from pathlib import Path
 
 BIN = Path(sys.executable).parent
+
+
+def _log_time(path: Path, text: str) -> float:
+    """The ROS log time stamp (s) of the first line of a node log that contains text."""
+    for line in path.read_text(errors="replace").splitlines():
+        if text in line:
+            return float(line.split("]")[1].strip(" ["))
+    raise RuntimeError(f"{text!r} not in {path}")
+
+
+def run_phase(out: Path) -> float:
+    """Wall seconds from belt_drive's first band block to the plant's run complete (node logs)."""
+    logs = out / "logs"
+    start = _log_time(logs / "belt_drive.log", "sending band samples")
+    return _log_time(logs / "plant.log", "run complete") - start
 
 
 def rig_wall(case: int, duration: float, out: Path, record: bool) -> float:
@@ -65,15 +83,24 @@ def bench_rig(args: argparse.Namespace, tmp: Path) -> None:
     modes = [("recorded", True), ("no recorder", False)] if not args.no_bag else [("no recorder", False)]
     for label, record in modes:
         for rep in range(args.repeat):
-            walls = {}
+            walls, phases = {}, {}
             for duration in (args.short, args.long):
                 out = tmp / f"{label[:2]}{rep}_{duration:g}"
                 walls[duration] = rig_wall(args.case, duration, out, record)
+                phases[duration] = run_phase(out)
             rate, startup = marginal((args.short, walls[args.short]), (args.long, walls[args.long]))
             print(
                 f"lubrig rig --case {args.case} ({label}): {args.short:g} s run "
                 f"{walls[args.short]:.2f} s wall, {args.long:g} s run {walls[args.long]:.2f} s wall -> "
-                f"marginal {rate:.1f} rig s per wall s, start-up {startup:.2f} s"
+                f"marginal {rate:.1f} rig s per wall s, start-up + shutdown {startup:.2f} s"
+            )
+            inside = (args.long - args.short) / (phases[args.long] - phases[args.short])
+            print(
+                f"  run phase (first band block -> run complete, node logs): {args.short:g} s in "
+                f"{phases[args.short]:.2f} s, {args.long:g} s in {phases[args.long]:.2f} s -> "
+                f"marginal {inside:.1f} rig s per wall s; {args.long:g} s run overall "
+                f"{args.long / phases[args.long]:.1f}; outside the run phase: "
+                f"{walls[args.long] - phases[args.long]:.2f} s"
             )
     rate = core_rate(args.case, args.long)
     print(f"core.run.simulate, case {args.case}, {args.long:g} s: {rate:.1f} rig s per wall s")

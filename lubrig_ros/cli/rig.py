@@ -143,6 +143,7 @@ def _wait_complete(
                 break
             executor.spin_once(timeout_sec=0.1)
     finally:
+        executor.shutdown(timeout_sec=1.0)  # before the context: no Executor.__del__ traceback
         node.destroy_node()
         context.try_shutdown()
     return bool(done)
@@ -231,6 +232,9 @@ def run(args: argparse.Namespace) -> int:
     discovery = discovery_environment(os.environ, args.network)  # this host only unless asked
     env = discovery.env
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
+    # the launcher's own participant (it waits for run_complete) with the nodes' transports and
+    # discovery range: with rclpy's defaults it found the latched run_complete seconds late
+    os.environ.update({k: v for k, v in env.items() if os.environ.get(k) != v})
     with_recorder = not args.no_recorder
     if with_recorder:
         # sim: nothing flows before the recorder has subscribed to every output (no lost sample),

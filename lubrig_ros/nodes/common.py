@@ -7,6 +7,7 @@ the node is started with `--ros-args -r __ns:=/other`), except /clock and /diagn
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import math
 import os
@@ -237,6 +238,7 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
     """rclpy.init, build the node, spin until SIGINT/SIGTERM, destroy, shut down; exit status."""
     rclpy.init(args=args)
     node: Node | None = None
+    executor: SingleThreadedExecutor | None = None
     status = 0
     try:
         node = make_node()
@@ -261,6 +263,11 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
             if close is not None:
                 close()
             node.destroy_node()
+        if executor is not None:
+            # shut down while the context lives: otherwise Executor.__del__ at exit prints an
+            # InvalidHandle traceback (its SIGINT guard condition is already destroyed)
+            with contextlib.suppress(Exception):
+                executor.shutdown(timeout_sec=1.0)
         rclpy.try_shutdown()
     return status
 
