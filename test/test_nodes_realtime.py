@@ -92,7 +92,7 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     assert [d.label for d in power.layout.dim] == ["frequency", "time"]
     assert len(power.data) == power.layout.dim[0].size * power.layout.dim[1].size
     assert all(math.isfinite(v) for v in power.data)
-    assert probe.wait_for(lambda: probe.messages[f"{NS}/wavelet_image"], 60)
+    assert probe.wait_for(lambda: probe.messages[f"{NS}/wavelet_image"], 60), procs.log("analysis")
     image = probe.messages[f"{NS}/wavelet_image"][-1]
     assert image.encoding == "rgb8" and len(image.data) == image.height * image.step
     assert probe.wait_for(lambda: probe.messages[f"{NS}/linear_zone"], 60)
