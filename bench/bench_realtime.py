@@ -22,9 +22,9 @@ from pathlib import Path
 from diagnostic_msgs.msg import DiagnosticArray
 from lubrig_testkit.harness import DomainLease, Probe, Processes, ros_env
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool
 
+from lubrig_interfaces.msg import RigState
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
 from lubrig_ros.nodes import common
@@ -46,7 +46,7 @@ def bench_realtime(duration: float, tmp: Path) -> dict[str, str]:
         procs.node("belt_drive", mode="realtime")
         procs.node("analysis")
         timing = f"{common.DEFAULT_NAMESPACE}/state"
-        probe.subscribe(timing, JointState)
+        probe.subscribe(timing, RigState)
         if not probe.wait_for(lambda: probe.messages[timing], 30):
             raise RuntimeError("plant did not start:\n" + procs.log("plant"))
 
@@ -92,8 +92,8 @@ def bench_sim(case: int, rig_seconds: float, tmp: Path) -> tuple[float, float]:
     try:
         probe.subscribe("/clock", Clock)
         probe.subscribe(f"{ns}/run_complete", Bool, common.LATCHED_QOS)
-        for name in ("plant", "belt_drive"):
-            procs.node(name, case=case, duration=rig_seconds)
+        procs.node("plant", case=case, duration=rig_seconds, publish_clock=True)
+        procs.node("belt_drive", case=case, duration=rig_seconds)
         procs.node("analysis", case=case)
         if not probe.wait_for(
             lambda: any(m.data for m in probe.messages[f"{ns}/run_complete"]), 60 + 5 * rig_seconds

@@ -1,7 +1,7 @@
 """One rig run with launch_ros: belt_drive, plant and analysis in the rig's namespace.
 
 ros2 launch lubrig_ros rig.launch.py [case:=N | config_file:=FILE] [mode:=sim|realtime] [duration:=S]
-[namespace:=NS] [network:=false|true].
+[namespace:=NS] [network:=false|true] [publish_clock:=true|false].
 
 For ROS 2 installations with launch_ros (not installable from pip here: `lubrig rig` is the
 launcher that works everywhere). Like `lubrig rig`, it resolves the run once (case | config file |
@@ -46,15 +46,17 @@ ARGUMENTS = {
     "run_dir": "",
     "namespace": DEFAULT_NAMESPACE,
     "network": "false",
+    "publish_clock": "true",
 }
-TYPES = {"case": int, "duration": float}  # the others are strings; network is a boolean
+TYPES = {"case": int, "duration": float}  # the others are strings, but for the booleans
+BOOLEANS = ("network", "publish_clock")
 
 
 def _typed(name: str, text: str) -> object:
     """A launch argument's value as its type, or a ValueError naming the argument and the value."""
-    if name == "network":
+    if name in BOOLEANS:
         if text.lower() not in ("true", "false"):
-            raise ValueError(f"network:={text!r} is not valid; expected true or false")
+            raise ValueError(f"{name}:={text!r} is not valid; expected true or false")
         return text.lower() == "true"
     kind = TYPES.get(name)
     if kind is None or text == "":
@@ -89,7 +91,12 @@ def _nodes(context, *_args, **_kwargs):
     params_file = os.path.join(get_package_share_directory("lubrig_ros"), "config", "nodes.yaml")
     mode = value["mode"]
     per_node = {
-        "plant": {"config_file": run_config, "mode": mode},
+        "plant": {
+            "config_file": run_config,
+            "mode": mode,
+            # sim: /clock has one owner per domain; publish_clock:=false for a second rig
+            "publish_clock": mode == "sim" and bool(value["publish_clock"]),
+        },
         "belt_drive": {"config_file": run_config, "mode": mode},
         "analysis": {"config_file": run_config},
     }

@@ -36,7 +36,8 @@ def _check_descriptor(node: str, d, spec: contract.NodeParameter) -> None:
     else:
         assert not d.floating_point_range and not d.integer_range, (node, d.name)
     expected_type = {"double": ParameterType.PARAMETER_DOUBLE, "integer": ParameterType.PARAMETER_INTEGER,
-                     "string": ParameterType.PARAMETER_STRING, "bool": ParameterType.PARAMETER_BOOL}
+                     "string": ParameterType.PARAMETER_STRING, "bool": ParameterType.PARAMETER_BOOL,
+                     "string_array": ParameterType.PARAMETER_STRING_ARRAY}
     assert d.type == expected_type[spec.type], (node, d.name, d.type)
 
 

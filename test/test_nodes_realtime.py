@@ -1,8 +1,10 @@
 """Realtime mode over real DDS: 1 ms rig-time steps, run-time profile updates, reset/pause, analysis.
 
 Nothing here asserts a wall-clock rate: how well the plant keeps its deadlines on a loaded machine
-is a benchmark figure (bench/bench_realtime.py). The tests assert what is published: states one per
-millisecond of rig time, in order, rig time never ahead of the wall clock, the plant's own counts.
+is a benchmark figure (bench/bench_realtime.py). The tests assert what is published: one RigState
+per sample (sample_index 0, 1, 2, … = rig time / 1 ms within a segment), in order, stamped with
+ROS time (within a second of the wall clock), rig time never ahead of the wall clock, the plant's
+own counts; a reset starts segment 1 at sample 0.
 """
 
 from __future__ import annotations
@@ -13,15 +15,22 @@ import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from sensor_msgs.msg import Image, JointState
+from sensor_msgs.msg import Image
 from std_msgs.msg import Float64, Float64MultiArray, UInt8
 from std_srvs.srv import SetBool, Trigger
+
+from lubrig_interfaces.msg import RigState, StabilityFlags, WaveletFrame
 
 NS = "/lubrig"
 
 
-def _stamp(msg: JointState) -> float:
+def _stamp(msg: RigState) -> float:
     return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+def _rig_time(msg: RigState) -> float:
+    """Rig time of a realtime sample: its index in the segment times the 1 ms sample period."""
+    return msg.sample_index * 1e-3
 
 
 def _timing_reports(probe) -> list[dict[str, str]]:
@@ -37,14 +46,16 @@ def _timing_reports(probe) -> list[dict[str, str]]:
 def test_realtime_steps_parameters_services_analysis(procs, probe):
     for name, msg_type in (
         ("band_velocity", Float64),
-        ("state", JointState),
+        ("state", RigState),
         ("wavelet_power", Float64MultiArray),
+        ("wavelet_frame", WaveletFrame),
+        ("stability", StabilityFlags),
         ("wavelet_image", Image),
         ("linear_zone", UInt8),
     ):
         probe.subscribe(f"{NS}/{name}", msg_type)
     probe.subscribe("/diagnostics", DiagnosticArray)
-    started = time.monotonic()
+    started, wall_start = time.monotonic(), time.time()
     procs.node("plant", mode="realtime", diagnostics_period=0.2)
     procs.node("belt_drive", mode="realtime")
     procs.node("analysis", window=256, n_scales=16, publish_period=0.2)
@@ -53,13 +64,19 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     assert probe.wait_for_count(band, 500, 60), procs.logs()
     elapsed = time.monotonic() - started
     states = list(probe.messages[state])
-    # one state per 1 ms of rig time, in order: stamps on the 1 ms grid, strictly increasing
-    steps = np.array([_stamp(m) for m in states]) * 1000
-    assert np.allclose(steps, np.round(steps), rtol=0, atol=1e-3), steps[:10]
-    assert np.all(np.diff(np.round(steps)) >= 1), "states out of order or repeated"
-    assert all(math.isfinite(m.position[0]) and math.isfinite(m.velocity[0]) for m in states)
+    # one state per 1 ms of rig time, in order: sample indices strictly increasing in segment 0
+    index = np.array([m.sample_index for m in states])
+    assert np.all(np.diff(index) >= 1), "states out of order or repeated"
+    assert {m.segment for m in states} == {0}
+    assert all(math.isfinite(m.displacement) and math.isfinite(m.velocity) for m in states)
+    assert all(math.isfinite(m.relative_velocity) and m.band_velocity == 1e-7 for m in states[1:])
+    # stamps are ROS time (here the wall clock, same machine): between the start of the test and
+    # now (a busy probe takes them late, so not compared with their arrival), never backwards
+    stamps = np.array([_stamp(m) for m in states])
+    assert np.all(np.diff(stamps) >= 0)
+    assert wall_start - 1.0 <= stamps[0] and stamps[-1] <= time.time() + 1.0, (wall_start, stamps[[0, -1]])
     # paced by the wall clock: rig time is never ahead of it (a lagging plant is a bench figure)
-    assert steps[-1] / 1000 <= elapsed, (steps[-1], elapsed)
+    assert index[-1] / 1000 <= elapsed, (index[-1], elapsed)
     assert len(probe.messages[band]) <= 1000 * elapsed + 1
     # the belt drive's default profile: a constant 1e-7 m/s, every sample
     assert {m.data for m in probe.messages[band]} == {1e-7}
@@ -75,11 +92,24 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     assert [d.label for d in power.layout.dim] == ["frequency", "time"]
     assert len(power.data) == power.layout.dim[0].size * power.layout.dim[1].size
     assert all(math.isfinite(v) for v in power.data)
-    assert probe.wait_for(lambda: probe.messages[f"{NS}/wavelet_image"], 60)
+    assert probe.wait_for(lambda: probe.messages[f"{NS}/wavelet_image"], 60), procs.log("analysis")
     image = probe.messages[f"{NS}/wavelet_image"][-1]
     assert image.encoding == "rgb8" and len(image.data) == image.height * image.step
     assert probe.wait_for(lambda: probe.messages[f"{NS}/linear_zone"], 60)
     assert probe.messages[f"{NS}/linear_zone"][-1].data == 2  # 1e-7 m/s is zone 2
+    # the typed analysis outputs: the wavelet frame with its axes, every stability flag
+    assert probe.wait_for(lambda: probe.messages[f"{NS}/wavelet_frame"], 60)
+    frame = probe.messages[f"{NS}/wavelet_frame"][-1]
+    assert frame.rows == len(frame.frequency) == 16 and len(frame.power) == frame.rows * frame.cols
+    assert list(frame.frequency) == sorted(frame.frequency, reverse=True)  # row 0: highest
+    assert all(math.isfinite(v) for v in frame.power)
+    end = frame.end.sec + 1e-9 * frame.end.nanosec  # the plant's stamps: ROS time
+    assert abs(end - time.time()) < 5.0, end
+    assert probe.wait_for(lambda: probe.messages[f"{NS}/stability"], 60)
+    flags = probe.messages[f"{NS}/stability"][-1]
+    assert flags.linear_zone == StabilityFlags.ZONE_FALLING and flags.band_velocity == 1e-7
+    assert flags.damping_ratio > 0 and flags.critical_damping_ratio > 0
+    assert flags.linear_stable == (flags.damping_ratio > flags.critical_damping_ratio)
 
     # a valid parameter update changes the running profile
     result = probe.set_parameter("lubrig/belt_drive", "profile.velocity", 3e-7)
@@ -115,29 +145,29 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     assert paused_reports()[-1]["rig_time_s"] == held["rig_time_s"]
     assert paused_reports()[-1]["samples"] == held["samples"]
     paused_at = float(held["rig_time_s"])
-    assert max(_stamp(m) for m in probe.messages[state]) <= paused_at + 1e-9
+    assert max(_rig_time(m) for m in probe.messages[state]) <= paused_at + 1e-9
     reply = probe.call(SetBool, f"{NS}/plant/pause", SetBool.Request(data=False))
     assert reply.success
     # resume: states flow again, rig time going on from where it stood, in order
     assert probe.wait_for(
-        lambda: sum(_stamp(m) > paused_at for m in list(probe.messages[state])) >= 400, 30
-    ), (paused_at, [_stamp(m) for m in probe.messages[state][-5:]], _timing_reports(probe)[-1:])
-    stamps = [_stamp(m) for m in probe.messages[state]]
-    assert all(a < b for a, b in itertools.pairwise(stamps)), "states out of order"
-    # reset: rig time back to 0
-    before = probe.messages[state][-1].header.stamp.sec
-    assert before >= 1
+        lambda: sum(_rig_time(m) > paused_at for m in list(probe.messages[state])) >= 400, 30
+    ), (paused_at, [_rig_time(m) for m in probe.messages[state][-5:]], _timing_reports(probe)[-1:])
+    index = [m.sample_index for m in probe.messages[state]]
+    assert all(a < b for a, b in itertools.pairwise(index)), "states out of order"
+    # reset: rig time back to 0 in a new segment
+    assert probe.messages[state][-1].sample_index >= 1000
     seen = len(probe.messages[state])
     reply = probe.call(Trigger, f"{NS}/plant/reset", Trigger.Request())
-    assert reply.success
+    assert reply.success and "segment 1" in reply.message
 
-    def stamps_after_reset() -> list[float]:
-        return [_stamp(m) for m in probe.messages[state][seen:]]
+    def after_reset() -> list[RigState]:
+        return list(probe.messages[state][seen:])
 
-    # rig time restarts at 0: a state stamped within the first 50 ms arrives (whatever the load)
-    assert probe.wait_for(lambda: min(stamps_after_reset(), default=1e9) < 0.05, 10), (
-        stamps_after_reset()[:5]
-    )
+    # segment 1 starts again at sample 0
+    assert probe.wait_for(lambda: any(m.segment == 1 for m in after_reset()), 10)
+    new = [m for m in after_reset() if m.segment == 1]
+    assert new[0].sample_index == 0, [m.sample_index for m in new[:5]]
+    assert all(a < b for a, b in itertools.pairwise(m.sample_index for m in new))
     codes = procs.stop_all()
     assert all(code == 0 for code in codes.values()), (codes, procs.logs())
 

@@ -108,28 +108,24 @@ def test_friction_law_selects_another_law_with_its_defaults():
 
 def test_plant_node_runs_a_stribeck_configuration(tmp_path, stribeck, procs, probe):
     """A real plant + belt_drive (separate processes, DDS) with a Stribeck YAML equals simulate."""
-    from rosgraph_msgs.msg import Clock
-    from sensor_msgs.msg import JointState
-    from std_msgs.msg import Bool, Float64
+    from std_msgs.msg import Bool
 
     from lubrig_ros.nodes import common
 
     config_file = tmp_path / "stribeck.yaml"
     config_file.write_text(stribeck.to_yaml())
     ns = common.DEFAULT_NAMESPACE
-    for name in ("displacement", "velocity", "friction_coefficient"):
-        probe.subscribe(f"{ns}/{name}", Float64)
-    probe.subscribe(f"{ns}/state", JointState)
-    probe.subscribe("/clock", Clock)  # the plant holds the run until all its outputs are heard
     probe.subscribe(f"{ns}/run_complete", Bool, common.LATCHED_QOS)
+    me = probe.consume_blocks(ns)  # a required consumer: belt_drive paces on it too
     procs.node("plant", config_file=config_file, wait_for_subscriber="probe")
-    procs.node("belt_drive", config_file=config_file)
+    procs.node("belt_drive", config_file=config_file, required_consumers=f"['{me}']")
     done = probe.wait_for(lambda: any(m.data for m in probe.messages[f"{ns}/run_complete"]), 60)
     assert done, procs.log("plant") + procs.log("belt_drive")
     n = stribeck.samples + 1
-    assert probe.wait_for(lambda: len(probe.messages[f"{ns}/displacement"]) >= n, 5)
+    blocks = probe.messages[f"{ns}/state_block"]
+    assert probe.wait_for(lambda: sum(len(b.displacement) for b in blocks) >= n, 5)
     codes = procs.stop_all()
     assert "friction law stribeck" in procs.log("plant")
-    x = np.array([m.data for m in probe.messages[f"{ns}/displacement"]])
+    x = np.concatenate([b.displacement for b in blocks])
     assert np.array_equal(x, simulate(stribeck).displacement)  # bit-identical, sample for sample
     assert all(code == 0 for code in codes.values()), codes

@@ -1,8 +1,11 @@
 """The analysis node's rules without ROS: state/band pairing, wavelet analysis, flags, outputs.
 
-`AnalysisSession` takes the plant's states (`state_input`: x, ẋ and the band velocity the sample
-was integrated with), band messages (`band_input`) and the plant's run configuration
-(`run_config_input`); every `tick` it returns an `AnalysisOutput` with what the node publishes.
+`AnalysisSession` takes the plant's samples (`samples_input`: arrays of x, ẋ, the band velocity
+each sample was integrated with and v_rel, from a RigStateBlock or one RigState, with the rig time
+of the last one; `state_input`: the old per-sample x, ẋ pair), band messages (`band_input`) and
+the plant's run configuration (`run_config_input`); every `tick` it returns an `AnalysisOutput`
+with what the node publishes (also the wavelet power's frequency and time axes and the full
+stability flags for the typed outputs wavelet_frame and stability).
 Odd input never kills it: non-finite values are counted and skipped, an update that cannot be
 analysed is counted and reported in the output, nothing non-finite is ever returned for
 publication.
@@ -12,12 +15,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import yaml
 
-from ..core.flags import StabilityFlags
+from ..core.flags import StabilityFlags, evaluate_flags
 from ..core.online import OnlineUpdate, OnlineWaveletAnalyzer
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
@@ -108,6 +111,12 @@ class AnalysisOutput:
     oscillation_growing: bool | None = None
     statuses: list[Status] = field(default_factory=list)
     skipped: str | None = None  # why the wavelet update was skipped (odd input), else None
+    frequencies: np.ndarray | None = None  # (rows,) Hz of the rows of `power`
+    power_start: float | None = None  # s, rig time of the first column of `power`
+    power_end: float | None = None  # s, rig time of the last column
+    flags: StabilityFlags | None = None  # every flag: the linear group at the current band,
+    # the signal groups from the latest full-window analysis
+    newest_time: float | None = None  # s, rig time of the newest sample analysed
 
 
 class AnalysisSession:
@@ -118,6 +127,8 @@ class AnalysisSession:
         self.x: list[float] = []
         self.vrel: list[float] = []
         self.band: float | None = None
+        self.newest_time: float | None = None  # rig time of the newest sample taken
+        self.window_flags: StabilityFlags | None = None
         self.bad_messages = 0
         self.bad_updates = 0  # analysis updates skipped on input that cannot be analysed
         self.configure(config)
@@ -148,7 +159,46 @@ class AnalysisSession:
         self.configure(config)
         self.x.clear()
         self.vrel.clear()
+        self.window_flags = None
         return None
+
+    def samples_input(
+        self,
+        displacement: Sequence[float],
+        velocity: Sequence[float],
+        band_velocity: Sequence[float],
+        relative_velocity: Sequence[float],
+        newest_time: float | None = None,
+    ) -> int:
+        """Consecutive plant samples (a RigStateBlock's arrays, or one RigState); how many were taken.
+
+        Arrays of unequal length are a malformed message (counted, nothing taken); samples with a
+        non-finite x, ẋ or v_rel are counted and skipped. `newest_time`: rig time of the last
+        sample (s), the time axis of the wavelet output.
+        """
+        try:
+            x, v, band, vrel = (
+                np.asarray(a, dtype=float).reshape(-1)
+                for a in (displacement, velocity, band_velocity, relative_velocity)
+            )
+        except (TypeError, ValueError):
+            self.bad_messages += 1
+            return 0
+        if not (x.size == v.size == band.size == vrel.size) or x.size == 0:
+            self.bad_messages += 1
+            return 0
+        good = np.isfinite(x) & np.isfinite(v) & np.isfinite(vrel)
+        if not good.all():
+            self.bad_messages += int((~good).sum())
+            x, band, vrel = x[good], band[good], vrel[good]
+        finite_band = band[np.isfinite(band)]
+        if finite_band.size:
+            self.band = float(finite_band[-1])
+        self.x.extend(x.tolist())
+        self.vrel.extend(vrel.tolist())
+        if newest_time is not None and math.isfinite(newest_time):
+            self.newest_time = float(newest_time)
+        return int(x.size)
 
     def band_input(self, value: float) -> bool:
         """A band velocity message; non-finite values are counted and ignored."""
@@ -190,23 +240,34 @@ class AnalysisSession:
         return out
 
     def _analyse(self, out: AnalysisOutput) -> None:
+        out.newest_time = self.newest_time
         if self.band:  # a band at rest has no sliding equilibrium, hence no zone or ζ_crit
             verdict = linear_stability(abs(self.band), self.config.rig)
             out.linear_zone = None if verdict.zone is None else int(verdict.zone)  # None: law without a peak
             if math.isfinite(verdict.critical_damping_ratio):
                 out.critical_damping_ratio = float(verdict.critical_damping_ratio)
-        if not self.x:
-            return
-        x, vrel = self.x, self.vrel
-        self.x, self.vrel = [], []
-        update = self.analyzer.push(x, vrel, band_velocity=self.band)
-        if update.ready:
-            self._outputs(update, out)
+        if self.x:
+            x, vrel = self.x, self.vrel
+            self.x, self.vrel = [], []
+            update = self.analyzer.push(x, vrel, band_velocity=self.band)
+            if update.ready:
+                self._outputs(update, out)
+        out.flags = self._flags()
+
+    def _flags(self) -> StabilityFlags:
+        """The linear group at the current band velocity with the latest window's signal groups."""
+        linear = evaluate_flags(self.config.rig, band_velocity=self.band)
+        base = self.window_flags or StabilityFlags()
+        return replace(base, **{name: getattr(linear, name) for name in FLAG_GROUPS["linear"]})
 
     def _outputs(self, update: OnlineUpdate, out: AnalysisOutput) -> None:
         power = update.power[:, -self.settings.max_columns :]
-        if power.size and np.isfinite(power).all():
+        if power.size and np.isfinite(power).all() and np.isfinite(update.frequencies).all():
             out.power = power
+            out.frequencies = np.asarray(update.frequencies, dtype=float)
+            if self.newest_time is not None:  # the columns are the newest samples, dt apart
+                out.power_end = self.newest_time
+                out.power_start = self.newest_time - (power.shape[1] - 1) * self.analyzer.dt
         if update.components:
             f = update.components[0].frequency_hz
             if math.isfinite(f):
@@ -214,5 +275,6 @@ class AnalysisSession:
         if update.window is not None and np.isfinite(update.window.power).all():
             out.image = render_power(update.window.power, self.settings.image_width)
         if update.flags is not None:
+            self.window_flags = update.flags
             out.oscillation_growing = update.flags.oscillation == "growing"
             out.statuses = flag_statuses(update.flags)

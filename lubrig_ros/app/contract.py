@@ -300,7 +300,7 @@ def select_topics(namespace: str, names: list[str] | tuple[str, ...] | None) -> 
 
 # ------------------------------------------------------------------------------ parameters
 
-ParameterType = Literal["double", "integer", "string", "bool"]
+ParameterType = Literal["double", "integer", "string", "bool", "string_array"]
 
 
 @dataclass(frozen=True)
@@ -331,6 +331,8 @@ class NodeParameter:
             return f"one of {list(self.choices)}"
         if self.type == "string":
             return "a string"
+        if self.type == "string_array":
+            return "a list of strings"
         if self.type == "bool":
             return "true or false"
         number = "an integer" if self.type == "integer" else "a finite number"
@@ -358,6 +360,11 @@ class NodeParameter:
                 raise bad
         elif self.type == "string":
             if not isinstance(value, str) or (self.choices and value not in self.choices):
+                raise bad
+        elif self.type == "string_array":
+            if isinstance(value, str) or not isinstance(value, list | tuple):
+                raise bad
+            if not all(isinstance(v, str) for v in value):
                 raise bad
         elif not isinstance(value, bool):
             raise bad
@@ -393,6 +400,34 @@ REALTIME_PRIORITY = _p(
     "realtime: SCHED_FIFO priority 1..99 of the loop thread so other processes cannot delay its "
     "ticks; 0 keeps normal scheduling", low=0, high=99,
 )
+#: Band samples per BandVelocityBlock (sim); measured: docs/nodes.md "Block length".
+DEFAULT_BLOCK_LENGTH = 100
+MAX_BLOCK_LENGTH = 10_000
+#: Band samples belt_drive may send beyond the slowest participant (sim).
+DEFAULT_FLOW_WINDOW = 1000
+MAX_FLOW_WINDOW = 1_000_000
+#: Node name of the recorder's flow-progress participant, in the rig's namespace (`lubrig rig`
+#: adds it to belt_drive's required_consumers when it records).
+RECORDER_PARTICIPANT = "lubrig_recorder"
+
+
+def flow_window_problem(flow_window: int, block_length: int) -> str | None:
+    """Why this window could lose blocks with this block length, or None.
+
+    Reliable keep_last QoS keeps BLOCK_QOS.depth unacknowledged messages per reader: a window
+    of w samples puts at most ceil(w / block_length) + 1 blocks in flight towards the slowest
+    participant (plus its progress message); keep that below the depth with a margin of 2.
+    """
+    most = (BLOCK_QOS.depth - 2) * block_length
+    if flow_window > most:
+        return (
+            f"flow_window={flow_window} is too large for block_length={block_length}: at most "
+            f"{most} samples ({BLOCK_QOS.depth - 2} blocks, the block topics' QoS depth "
+            f"{BLOCK_QOS.depth} minus 2) may be in flight without a risk of losing a block"
+        )
+    return None
+
+
 #: Largest |band velocity| the plant accepts from the band topic, m/s.
 BAND_VELOCITY_LIMIT = 1e-2
 
@@ -483,6 +518,13 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
         REALTIME_PRIORITY,
         _p("diagnostics_period", "double", 1.0, "time between /diagnostics", unit="s", low=0.0,
            low_open=True),
+        _p("publish_clock", "bool", False,
+           "sim: publish rig time on the global /clock (one per block + 5 Hz heartbeat); one "
+           "owner per ROS domain: the launcher turns it on for a single rig only"),
+        _p("scalar_topics", "bool", False,
+           "also publish displacement, velocity and friction_coefficient as std_msgs/Float64, one "
+           "message per sample (about 3 x 37 us per sample for the plant, and the same per "
+           "subscriber: sim mode falls from block to sample speed)"),
     )
 
 
@@ -496,8 +538,20 @@ BELT_DRIVE_PARAMETERS: tuple[NodeParameter, ...] = (
        from_config="simulation.sample_rate"),
     _p("duration", "double", None, "run length (sim mode)", unit="s", low=0.0, low_open=True,
        from_config="simulation.duration"),
-    _p("flow_window", "integer", 200, "sim: band samples the drive may run ahead of the plant's clock",
-       unit="samples", low=1, high=900),
+    _p("block_length", "integer", DEFAULT_BLOCK_LENGTH,
+       "sim: band samples per band_velocity_block message (the plant answers with one state_block "
+       "per block); results do not depend on it", unit="samples", low=1, high=MAX_BLOCK_LENGTH),
+    _p("flow_window", "integer", DEFAULT_FLOW_WINDOW,
+       "sim: band samples the drive may send beyond the slowest of the plant and the required "
+       "consumers (flow_progress); at most (BLOCK_QOS depth - 2) x block_length",
+       unit="samples", low=1, high=MAX_FLOW_WINDOW),
+    _p("required_consumers", "string_array", (),
+       "sim: nodes (fully qualified, or relative to the drive's namespace) whose flow_progress "
+       "paces the drive besides the plant's; it starts once each has reported (e.g. "
+       "['lubrig_recorder'], set by `lubrig rig` when recording)"),
+    _p("plant_node", "string", "plant",
+       "sim: the plant's node name (relative to the drive's namespace, or absolute) whose "
+       "flow_progress sets the segment and paces the drive"),
     _p("start_delay", "double", 0.5, "wall time to wait once the plant is seen (discovery)", unit="s",
        low=0.0, high=60.0),
     _p("band_velocity_limit", "double", BAND_VELOCITY_LIMIT,

@@ -1,18 +1,29 @@
 """The plant's rules without ROS: band sample sequencing, pause/reset, input checks, timing.
 
 `PlantSession` is everything the plant node does that is not ROS. The node feeds it band values
-(`band_input`), calls `tick` from its real-time loop, forwards reset/pause requests and parameter
-updates, and publishes what the session hands to its sinks (`on_sample`, `on_complete`, `log`).
+(`band_input`, one value; `band_block`, consecutive values), calls `tick` from its real-time loop,
+forwards reset/pause requests and parameter updates, and publishes what the session hands to its
+sinks (`on_sample` per sample, `on_block` per integrated block, `on_complete`, `log`).
 
 Modes (app/contract.MODES):
 
-* ``sim``: rig time is the session's own. Band samples are queued and integrated strictly in
-  order, one sample per band value; after each the sample is emitted. The run is deterministic,
-  equal to core.run.simulate sample for sample; `on_complete(True)` once `duration` is reached,
-  band values after that are counted (`ignored_after_end`) and dropped.
+* ``sim``: rig time is the session's own. Band values are queued and integrated strictly in
+  order, one sample per band value, a block (`band_block`) as one call of the same core stepper
+  core.run.simulate uses (RigIntegrator.advance); the block's samples go to `on_block` as one
+  `PlantBlock` (the first block of a segment starts with the initial state, sample_index 0) and,
+  if an `on_sample` sink is given, one by one. The run is deterministic, equal to
+  core.run.simulate sample for sample whatever the block length; `on_complete(True)` once
+  `duration` is reached, band values after that are counted (`ignored_after_end`) and dropped.
+  A block stamped with another segment than the current one (sent before a reset) is dropped
+  and counted (`stale_blocks`).
 * ``realtime`` / ``rig_in_loop``: `tick` advances one sample with the latest good band value
-  (held while no new one arrives). The caller paces the ticks; the session keeps the timing
-  statistics (deadline misses, lateness, band→state latency) and the staleness of the input.
+  (held while no new one arrives); the values of a band block are used one per tick, in order.
+  The caller paces the ticks; the session keeps the timing statistics (deadline misses,
+  lateness, band→state latency) and the staleness of the input.
+
+Segments: `segment` is 0 from the start and +1 at every `reset`; `sample_index` and rig time
+restart at 0 with it. `published` counts the samples emitted in the current segment (the
+initial state included): what the plant reports on flow_progress (app/flow.py).
 
 Band values that are not finite or exceed `band_velocity_limit` in magnitude are rejected in every
 mode: counted, the last one reported, never integrated. A sample whose integration fails (an
@@ -36,7 +47,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..core.friction_laws import law_named
-from ..core.integrator import RigIntegrator, Trajectory
+from ..core.integrator import RigIntegrator, Trajectory, concatenate
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
 from ..core.run import integrator_for
@@ -78,6 +89,44 @@ class PlantSample(NamedTuple):
     band_velocity: float  # m/s, the band velocity this sample was integrated with
     belt_travel: float  # m, integral of the band velocity since the last reset
     friction_force: float  # N, μ · normal force
+    relative_velocity: float = 0.0  # m/s, v_band − γ ẋ
+    sample_index: int = 0  # samples emitted in this segment before this one
+    segment: int = 0  # 0 at start, +1 per reset
+
+
+@dataclass(frozen=True)
+class PlantBlock:
+    """Consecutive output samples of one segment (SI units): what a sim plant publishes per block.
+
+    Sample i has rig time `time[i]` and sample index first_sample_index + i.
+    """
+
+    segment: int
+    first_sample_index: int
+    sample_period: float  # s
+    time: np.ndarray  # s
+    displacement: np.ndarray  # m
+    velocity: np.ndarray  # m/s
+    friction_coefficient: np.ndarray  # 1
+    friction_force: np.ndarray  # N
+    band_velocity: np.ndarray  # m/s
+    relative_velocity: np.ndarray  # m/s
+    belt_travel: np.ndarray  # m
+
+    def __len__(self) -> int:
+        return int(self.time.size)
+
+    def samples(self) -> list[PlantSample]:
+        """The block as PlantSample tuples."""
+        return [
+            PlantSample(
+                float(self.time[i]), float(self.displacement[i]), float(self.velocity[i]),
+                float(self.friction_coefficient[i]), float(self.band_velocity[i]),
+                float(self.belt_travel[i]), float(self.friction_force[i]),
+                float(self.relative_velocity[i]), self.first_sample_index + i, self.segment,
+            )
+            for i in range(len(self))
+        ]
 
 
 @dataclass(frozen=True)
@@ -196,6 +245,7 @@ class PlantSession:
         settings: PlantSettings | None = None,
         *,
         on_sample: Callable[[PlantSample], None] = _nothing,
+        on_block: Callable[[PlantBlock], None] = _nothing,
         on_complete: Callable[[bool], None] = _nothing,
         log: Callable[[str, str], None] = _nothing,
         clock: Callable[[], float] = time.perf_counter,
@@ -205,15 +255,22 @@ class PlantSession:
         self.settings = settings or PlantSettings()
         self.mode = self.settings.mode
         self.on_sample, self.on_complete, self.log, self.clock = on_sample, on_complete, log, clock
+        self.on_block = on_block
         self.lock = threading.RLock()
         self.config = config if config is not None else base
         self.integrator: RigIntegrator = integrator_for(self.config)
         self.total = self.config.samples
-        self.sample_index = 0
+        self.sample_index = 0  # band samples integrated in this segment
+        self.segment = 0
+        self.published = 0  # samples emitted in this segment (the initial state included)
         self.paused = False
         self.complete = False
         self.restart_clock = False  # realtime: the caller restarts its deadline loop (reset, resume)
-        self._queue: deque[float] = deque()
+        self._queue: deque[np.ndarray] = deque()  # sim: band blocks waiting (paused)
+        self._rt_queue: deque[float] = deque(maxlen=max(1, round(self.config.sample_rate)))
+        self.rt_overflow = 0  # realtime: block values dropped because more than 1 s was queued
+        self.stale_blocks = 0  # sim: blocks of another segment than the current one (dropped)
+        self.index_gaps = 0  # sim: blocks whose first_sample_index was not the next expected
         self._emitted_initial = False
         # band input bookkeeping
         self.latest_band = float(self.config.band(0.0))
@@ -258,23 +315,28 @@ class PlantSession:
         try:
             config_from(self.base, {**current, **relevant})
         except (ParameterError, ValueError, TypeError) as exc:
-            return str(exc)
+            given = ", ".join(f"{k}={v!r}" for k, v in sorted(relevant.items()))
+            return f"{given} refused: {exc}"  # names the parameters, not only the field
         return None
 
     def reset(self, config: RunConfig) -> None:
         """Rig time back to 0 with `config` (e.g. config_from the current parameters).
 
-        sim: the queue is dropped and the initial state is emitted again with the next band
-        value; realtime / rig in the loop: the rig restarts at equilibrium for the band value
-        it holds and the caller restarts its deadline loop (`restart_clock`).
+        A new segment begins (`segment` + 1, `sample_index` and `published` 0). sim: the queue
+        is dropped and the initial state is emitted again with the next band value; realtime /
+        rig in the loop: the rig restarts at equilibrium for the band value it holds and the
+        caller restarts its deadline loop (`restart_clock`).
         """
         with self.lock:
             self.config = config
             self.integrator = integrator_for(config)
             self.total = config.samples
             self.sample_index = 0
+            self.segment += 1
+            self.published = 0
             self.complete = False
             self._queue.clear()
+            self._rt_queue.clear()
             self._emitted_initial = False
             if self.mode != "sim":
                 self.integrator.reset(band_velocity=self.latest_band)
@@ -319,39 +381,118 @@ class PlantSession:
                 self.last_rejected = value
                 return False
             if self.mode == "sim":
-                self._queue.append(value)
+                self._queue.append(np.array([value]))
                 self._drain()
             else:
                 self.latest_band = value
                 self.latest_band_recv = now
                 self.new_band = True
+                self._rt_queue.clear()  # a single value replaces what a block queued
             return True
+
+    def band_block(
+        self,
+        values: Any,
+        segment: int | None = None,
+        first_sample_index: int | None = None,
+    ) -> int:
+        """Consecutive band values (a BandVelocityBlock); returns how many were accepted.
+
+        Every value is checked as in `band_input`; rejected ones are counted and skipped. sim:
+        a block of another `segment` than the current one is dropped (`stale_blocks`); a
+        `first_sample_index` that is not the next expected sample (samples integrated plus those
+        queued) is counted (`index_gaps`) and logged, the values are integrated all the same
+        (the flow control never sends one twice). realtime: the values serve one per tick.
+        """
+        now = self.clock()
+        try:
+            band = np.asarray(values, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            band = np.array([math.nan])
+        with self.lock:
+            self.received += band.size
+            good = np.isfinite(band) & (np.abs(band) <= self.settings.band_velocity_limit)
+            if not good.all():
+                bad = band[~good]
+                self.rejected += bad.size
+                self.rejected_since_report += bad.size
+                self.last_rejected = float(bad[-1])
+                band = band[good]
+            if self.mode != "sim":
+                if band.size:
+                    room = (self._rt_queue.maxlen or 0) - len(self._rt_queue)
+                    self.rt_overflow += max(0, band.size - room)
+                    self._rt_queue.extend(band.tolist())
+                    self.latest_band_recv = now
+                    self.new_band = True
+                return int(band.size)
+            if segment is not None and segment != self.segment:
+                self.stale_blocks += 1
+                return 0
+            if first_sample_index is not None:
+                expected = self.sample_index + sum(b.size for b in self._queue)
+                if first_sample_index != expected:
+                    self.index_gaps += 1
+                    self.log(
+                        "warning",
+                        f"band block starts at sample {first_sample_index}, expected {expected} "
+                        f"(segment {self.segment})",
+                    )
+            if band.size:
+                self._queue.append(band)
+                self._drain()
+            return int(band.size)
 
     # ---- sim -----------------------------------------------------------------------------
     def emit_initial(self) -> None:
         """Emit the current state once (sim: done before the first sample; realtime: at start)."""
         with self.lock:
             if not self._emitted_initial:
-                self._emit(self.integrator.current())
                 self._emitted_initial = True
+                if self.mode == "sim":
+                    self._emit_block(self.integrator.current())
+                else:
+                    self._emit(self.integrator.current())
 
     def _drain(self) -> None:
         if self.mode != "sim":
             return
-        if not self._emitted_initial:
-            self.emit_initial()
         while self._queue and not self.paused:
             band = self._queue.popleft()
             if self.complete:
-                self.ignored_after_end += 1
+                self.ignored_after_end += band.size
                 continue
-            traj = self._advance(band)
-            self.sample_index += 1
-            self._emit(traj)
+            room = self.total - self.sample_index
+            if band.size > room:
+                self.ignored_after_end += band.size - room
+                band = band[:room]
+            self._integrate_block(band)
             if self.sample_index >= self.total:
                 self.complete = True
                 self.on_complete(True)
                 self.log("info", f"sim: run complete at t = {self.integrator.time:g} s")
+
+    def _integrate_block(self, band: np.ndarray) -> None:
+        """Integrate a block of band values and emit it (with the initial state if not yet)."""
+        parts = [] if self._emitted_initial else [self.integrator.current()]
+        self._emitted_initial = True
+        traj = self._advance_block(band)
+        self.sample_index += band.size
+        parts.append(traj)
+        self._emit_block(parts[0] if len(parts) == 1 else concatenate(parts))
+
+    def _advance_block(self, band: np.ndarray) -> Trajectory:
+        """The block in one stepper call; on a failure, again sample by sample (`_advance`)."""
+        if band.size > 1:
+            saved = self.integrator.snapshot()
+            try:
+                traj = self.integrator.advance(band)
+                if np.isfinite(traj.displacement).all() and np.isfinite(traj.velocity).all():
+                    return traj
+            except (ValueError, ArithmeticError, RuntimeError):
+                pass
+            self.integrator.restore(saved)
+        return concatenate([self._advance(float(b)) for b in band])
 
     # ---- realtime / rig in the loop ------------------------------------------------------
     def tick(self, deadline: float | None = None, late: float = 0.0) -> None:
@@ -364,6 +505,9 @@ class PlantSession:
         with self.lock:
             recv = self.latest_band_recv if self.new_band else None
             self.new_band = False
+            if self._rt_queue:
+                self.latest_band = self._rt_queue.popleft()
+                self.new_band = bool(self._rt_queue)
             self._emit(self._advance(self.latest_band))
             self._emitted_initial = True
             done = self.clock()
@@ -418,6 +562,7 @@ class PlantSession:
         return self.integrator.current()
 
     def _emit(self, traj: Trajectory) -> None:
+        """Emit a one-sample trajectory (realtime ticks, the realtime initial state)."""
         x = float(traj.displacement[0])
         v = float(traj.velocity[0])
         mu = float(traj.friction_coefficient[0])
@@ -428,7 +573,54 @@ class PlantSession:
             self.belt_travel += 0.5 * (band + self._last_band[1]) * (t - self._last_band[0])
         self._last_band = (t, band)
         force = mu * self.config.rig.friction.normal_force
-        self.on_sample(PlantSample(t, x, v, mu, band, self.belt_travel, force))
+        index = self.published
+        self.published += 1
+        self.on_sample(
+            PlantSample(t, x, v, mu, band, self.belt_travel, force, float(traj.relative_velocity[0]),
+                        index, self.segment)
+        )
+
+    def _emit_block(self, traj: Trajectory) -> None:
+        """Emit consecutive samples as one PlantBlock (and per sample if on_sample is set)."""
+        keep = np.isfinite(traj.displacement) & np.isfinite(traj.velocity)
+        keep &= np.isfinite(traj.friction_coefficient)
+        if not keep.all():  # never published (cannot happen after _advance's check; last guard)
+            traj = Trajectory(**{name: getattr(traj, name)[keep] for name, _ in Trajectory.COLUMNS})
+        if not len(traj):
+            return
+        # rig time from the sample index, k / sample_rate as core.run.simulate has it (the
+        # integrator's own clock adds dt per sample and so depends on where blocks start)
+        t = (self.published + np.arange(len(traj), dtype=float)) * self.integrator.dt
+        band = traj.band_velocity
+        # belt travel, trapezoid rule, summed in sample order (as one addition per sample)
+        steps = np.empty(t.size)
+        if self._last_band is None:
+            steps[0] = 0.0
+        else:
+            t0, b0 = self._last_band
+            steps[0] = 0.5 * (band[0] + b0) * (t[0] - t0) if t[0] > t0 else 0.0
+        steps[1:] = np.where(t[1:] > t[:-1], 0.5 * (band[1:] + band[:-1]) * (t[1:] - t[:-1]), 0.0)
+        travel = np.cumsum(np.concatenate(([self.belt_travel], steps)))[1:]
+        self.belt_travel = float(travel[-1])
+        self._last_band = (float(t[-1]), float(band[-1]))
+        block = PlantBlock(
+            segment=self.segment,
+            first_sample_index=self.published,
+            sample_period=self.period,
+            time=t,
+            displacement=traj.displacement,
+            velocity=traj.velocity,
+            friction_coefficient=traj.friction_coefficient,
+            friction_force=traj.friction_coefficient * self.config.rig.friction.normal_force,
+            band_velocity=band,
+            relative_velocity=traj.relative_velocity,
+            belt_travel=travel,
+        )
+        self.published += len(block)
+        self.on_block(block)
+        if self.on_sample is not _nothing:
+            for sample in block.samples():
+                self.on_sample(sample)
 
     # ---- diagnostics ---------------------------------------------------------------------
     def input_age(self) -> float | None:
@@ -498,6 +690,10 @@ class PlantSession:
                     ("input_age_s", "none" if age is None else f"{age:.4f}"),
                     ("stale_timeout_s", f"{self.settings.stale_timeout:g}"),
                     ("ignored_after_run_end", str(self.ignored_after_end)),
+                    ("segment", str(self.segment)),
+                    ("stale_blocks", str(self.stale_blocks)),
+                    ("index_gaps", str(self.index_gaps)),
+                    ("queue_overflow", str(self.rt_overflow)),
                 ),
             )
             self.rejected_since_report = 0

@@ -10,6 +10,12 @@ NS`); waits until the plant reports
 the run complete (sim) or the wall duration has passed (realtime), stops the nodes and then the
 recorder with SIGINT (SIGTERM after a grace period) so that the bag is finalized, and finally
 writes the report of the bag into DIR/report (`--no-report` skips it) and prints its location.
+
+Sim mode: belt_drive streams band blocks paced on <ns>/flow_progress (app/flow.py); when recording,
+the recorder's participant (`<ns>/lubrig_recorder`, contract.RECORDER_PARTICIPANT) is one of
+belt_drive's `required_consumers`, so a slow recorder slows the run instead of losing samples.
+The plant publishes the global /clock (`publish_clock`) unless `--no-clock` is given: /clock has
+one owner per ROS domain, so a second rig on the same domain runs with `--no-clock`.
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..app.contract import DEFAULT_NAMESPACE, validate_namespace
+from ..app.contract import DEFAULT_NAMESPACE, RECORDER_PARTICIPANT, validate_namespace
 from ..app.discovery import discovery_environment
 from ..app.selection import RunSelection
 from ..core.params import CONVENTIONS, ParameterError
@@ -48,6 +54,17 @@ def _executable(name: str) -> str:
 
 
 RECORDER_NODE_PREFIX = "lubrig_recorder"  # the recorder's worker nodes: lubrig_recorder_w<i>_<pid>
+
+
+def recorder_reports_progress() -> bool:
+    """True when the installed recorder publishes flow_progress as RECORDER_PARTICIPANT.
+
+    The recorder side of issue 12 (nodes/recorder.py) declares it with a module constant
+    FLOW_PARTICIPANT; a recorder without it never reports, and pacing on it would never start.
+    """
+    from ..nodes import recorder
+
+    return getattr(recorder, "FLOW_PARTICIPANT", None) == RECORDER_PARTICIPANT
 
 
 
@@ -126,6 +143,7 @@ def _wait_complete(
                 break
             executor.spin_once(timeout_sec=0.1)
     finally:
+        executor.shutdown(timeout_sec=1.0)  # before the context: no Executor.__del__ traceback
         node.destroy_node()
         context.try_shutdown()
     return bool(done)
@@ -207,16 +225,25 @@ def run(args: argparse.Namespace) -> int:
         "belt_drive": dict(selection, mode=mode),
         "analysis": dict(selection),
     }
+    clock = mode == "sim" and not getattr(args, "no_clock", False)
+    if clock:
+        per_node["plant"]["publish_clock"] = True
     procs: dict[str, subprocess.Popen] = {}
     discovery = discovery_environment(os.environ, args.network)  # this host only unless asked
     env = discovery.env
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
+    # the launcher's own participant (it waits for run_complete) with the nodes' transports and
+    # discovery range: with rclpy's defaults it found the latched run_complete seconds late
+    os.environ.update({k: v for k, v in env.items() if os.environ.get(k) != v})
     with_recorder = not args.no_recorder
     if with_recorder:
-        # sim: nothing flows before the recorder has subscribed to every output (no lost sample)
+        # sim: nothing flows before the recorder has subscribed to every output (no lost sample),
+        # and belt_drive paces on the recorder's flow_progress as well as the plant's
         if mode == "sim":
             per_node["plant"]["wait_for_subscriber"] = RECORDER_NODE_PREFIX
             per_node["belt_drive"]["wait_for_subscriber"] = RECORDER_NODE_PREFIX
+            if recorder_reports_progress():
+                per_node["belt_drive"]["required_consumers"] = f"['{RECORDER_PARTICIPANT}']"
         else:
             per_node["belt_drive"]["start_delay"] = 1.5  # let the nodes discover the recorder
         _set_aside(bag / "bag")
@@ -242,6 +269,7 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"lubrig rig: {config.name} ({mode}, {config.duration:g} s) on ROS_DOMAIN_ID {domain}, "
             f"namespace {namespace}; {discovery.isolation}"
+            + (", publishing /clock (one owner per domain: --no-clock for a second rig)" if clock else "")
         )
         start = time.monotonic()
         if mode == "sim":
@@ -320,5 +348,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "LUBRIG_DISCOVERY=network); an unsecured domain lets them drive it (docs/security.md)",
     )
     parser.add_argument("--no-recorder", action="store_true", help="do not start the recorder")
+    parser.add_argument(
+        "--no-clock", action="store_true",
+        help="sim: the plant does not publish /clock (one owner per ROS domain: use it for a "
+        "second rig on the same domain)",
+    )
     parser.add_argument("--no-report", action="store_true", help="do not write DIR/report")
     parser.set_defaults(func=run)

@@ -149,6 +149,14 @@ class RigIntegrator:
         """Accepted Radau steps so far (work measure)."""
         return int(self._state[5])
 
+    def snapshot(self) -> np.ndarray:
+        """A copy of the full stepper state (time, state, step size, counters) for `restore`."""
+        return self._state.copy()
+
+    def restore(self, snapshot: np.ndarray) -> None:
+        """Back to a state taken with `snapshot` (e.g. to redo a failed block sample by sample)."""
+        self._state = np.array(snapshot, dtype=np.float64)
+
     def current(self) -> Trajectory:
         """The present state as a one-sample trajectory."""
         t, x, w, vb = self._state[:4]

@@ -1,30 +1,79 @@
 """analysis node: online wavelet analysis of the plant's displacement and stability flags.
 
-Subscribes to <ns>/state (x, ẋ) and <ns>/band_velocity; every `publish_period` s (wall) the
-samples received since the last update go into app.analysis_session.AnalysisSession, and the node
-publishes what it returns: the dominant frequency, the newest wavelet power columns
-(Float64MultiArray, dims ["frequency", "time"]), an rgb8 image of the window's power, the linear
-zone and ζ_crit at the current band velocity, the stability flags on /diagnostics (one status per
-flag group) and <ns>/oscillation_growing. The rig comes from case/config_file and is replaced by
-the plant's latched <ns>/run_config when it arrives. Topics, QoS, parameters: app/contract.py.
+Subscribes to <ns>/state_block (RigStateBlock, sim), <ns>/state (RigState, realtime and rig in
+the loop) and <ns>/band_velocity; every `publish_period` s (wall) the samples received since the
+last update go into app.analysis_session.AnalysisSession, and the node publishes what it
+returns: the dominant frequency, the newest wavelet power columns (Float64MultiArray, dims
+["frequency", "time"], and WaveletFrame with its frequency and time axes), an rgb8 image of the
+window's power, the linear zone and ζ_crit at the current band velocity, every stability flag
+with its values (StabilityFlags; also on /diagnostics, one status per flag group) and
+<ns>/oscillation_growing. Header stamps come from the node clock (sim time when the node runs
+with use_sim_time); WaveletFrame's start/end are the rig times of its first and last column.
+The rig comes from case/config_file and is replaced by the plant's latched <ns>/run_config when
+it arrives. Topics, QoS, parameters: app/contract.py.
 """
 
 from __future__ import annotations
 
+import array
+import math
+
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
-from sensor_msgs.msg import Image, JointState
+from sensor_msgs.msg import Image
 from std_msgs.msg import Bool, Float64, Float64MultiArray, MultiArrayDimension, String, UInt8
 
+from lubrig_interfaces.msg import RigState, RigStateBlock, StabilityFlags, WaveletFrame
+
+from ..app import cdr
 from ..app.analysis_session import AnalysisOutput, AnalysisSession, AnalysisSettings
 from ..app.contract import ANALYSIS_PARAMETERS
+from ..core import flags as core_flags
 from . import common
 from .interfaces import create_publisher, create_subscription
 
 OUTPUTS = (
     "dominant_frequency", "wavelet_power", "wavelet_image", "linear_zone", "critical_damping_ratio",
-    "oscillation_growing", "/diagnostics",
+    "oscillation_growing", "/diagnostics", "wavelet_frame", "stability",
 )
+OSCILLATION = {
+    "unknown": StabilityFlags.OSCILLATION_UNKNOWN,
+    "steady": StabilityFlags.OSCILLATION_STEADY,
+    "decaying": StabilityFlags.OSCILLATION_DECAYING,
+    "growing": StabilityFlags.OSCILLATION_GROWING,
+}
+
+
+def _number(value: float | int | None) -> float:
+    """A flag value for a message field: 0 for None or a non-finite value (never NaN)."""
+    return float(value) if value is not None and math.isfinite(value) else 0.0
+
+
+def stability_message(flags: core_flags.StabilityFlags, damping_ratio: float) -> StabilityFlags:
+    """The StabilityFlags message of core.flags.StabilityFlags (field meanings in the .msg)."""
+    msg = StabilityFlags()
+    if flags.zone is not None and flags.band_velocity_m_s:
+        msg.linear_zone = int(flags.zone)
+        msg.band_velocity = _number(flags.band_velocity_m_s)
+        msg.damping_ratio = _number(damping_ratio)
+        msg.critical_damping_ratio = _number(flags.critical_damping_ratio)
+        msg.effective_damping = _number(flags.effective_damping)
+        msg.linear_stable = bool(flags.linear_stable)
+    msg.oscillation = OSCILLATION.get(flags.oscillation, StabilityFlags.OSCILLATION_UNKNOWN)
+    if msg.oscillation != StabilityFlags.OSCILLATION_UNKNOWN:
+        msg.growth_rate = _number(flags.growth_rate_per_s)
+        msg.growth_fit_r2 = _number(flags.growth_fit_r2)
+    msg.oscillation_growing = msg.oscillation == StabilityFlags.OSCILLATION_GROWING
+    if flags.stick_threshold_m_s:
+        msg.stick_threshold = _number(flags.stick_threshold_m_s)
+        msg.stick_share = _number(flags.stick_share)
+        msg.sticking = msg.stick_share > 0.0
+        msg.stick_episodes = int(flags.stick_episodes or 0)
+        msg.longest_stick = _number(flags.longest_stick_s)
+    msg.resonance = bool(flags.resonance)
+    msg.resonance_harmonic = int(flags.resonance_harmonic or 0)
+    return msg
 
 
 class Analysis(Node):
@@ -42,6 +91,7 @@ class Analysis(Node):
         )
         self.session = AnalysisSession(config, settings)
         self.pubs = {name: create_publisher(self, name) for name in OUTPUTS}
+        create_subscription(self, "state_block", self._on_state_block)
         create_subscription(self, "state", self._on_state)
         create_subscription(self, "band_velocity", lambda m: self.session.band_input(m.data))
         create_subscription(self, "run_config", self._on_run_config)
@@ -55,8 +105,19 @@ class Analysis(Node):
             return
         self.get_logger().info(f"analysis: run configuration {self.session.config.name!r} from the plant")
 
-    def _on_state(self, msg: JointState) -> None:
-        self.session.state_input(msg.position, msg.velocity)
+    def _on_state_block(self, msg: RigStateBlock) -> None:
+        n = len(msg.displacement)
+        start = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        newest = start + (n - 1) * msg.sample_period if n else None
+        self.session.samples_input(
+            msg.displacement, msg.velocity, msg.band_velocity, msg.relative_velocity, newest
+        )
+
+    def _on_state(self, msg: RigState) -> None:
+        self.session.samples_input(
+            [msg.displacement], [msg.velocity], [msg.band_velocity], [msg.relative_velocity],
+            msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec,
+        )
 
     def _tick(self) -> None:
         out = self.session.tick()
@@ -79,6 +140,23 @@ class Analysis(Node):
             ]
             msg.data = out.power.ravel().tolist()
             p["wavelet_power"].publish(msg)
+        now = self.get_clock().now().to_msg()
+        if out.power is not None and out.frequencies is not None:
+            frame = WaveletFrame()
+            frame.header.stamp = now
+            rows, cols = out.power.shape
+            frame.rows, frame.cols = rows, cols
+            frame.frequency = array.array("d", out.frequencies.astype(np.float64).tobytes())
+            start = out.power_start if out.power_start is not None else 0.0
+            end = out.power_end if out.power_end is not None else 0.0
+            frame.start.sec, frame.start.nanosec = cdr.stamp_of(max(0.0, start))
+            frame.end.sec, frame.end.nanosec = cdr.stamp_of(max(0.0, end))
+            frame.power = array.array("f", np.ascontiguousarray(out.power, dtype=np.float32).tobytes())
+            p["wavelet_frame"].publish(frame)
+        if out.flags is not None:
+            stability = stability_message(out.flags, self.session.config.rig.damping_ratio)
+            stability.header.stamp = now
+            p["stability"].publish(stability)
         if out.dominant_frequency is not None:
             p["dominant_frequency"].publish(Float64(data=out.dominant_frequency))
         if out.image is not None:
@@ -93,10 +171,10 @@ class Analysis(Node):
         if out.oscillation_growing is not None:
             p["oscillation_growing"].publish(Bool(data=out.oscillation_growing))
         if out.statuses:
-            array = DiagnosticArray()
-            array.header.stamp = self.get_clock().now().to_msg()
-            array.status = [common.diagnostic_status(s) for s in out.statuses]
-            p["/diagnostics"].publish(array)
+            diagnostics = DiagnosticArray()
+            diagnostics.header.stamp = now
+            diagnostics.status = [common.diagnostic_status(s) for s in out.statuses]
+            p["/diagnostics"].publish(diagnostics)
 
 
 def main(args: list[str] | None = None) -> int:

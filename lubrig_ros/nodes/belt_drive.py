@@ -1,30 +1,49 @@
-"""belt_drive node: publishes the band velocity v_band(t) of a profile on <ns>/band_velocity.
+"""belt_drive node: the band velocity v_band(t) of a profile, for the plant.
 
-Modes: `sim` publishes sample k = v_band(k / sample_rate), k = 1 … N, strictly in order and only
-while the plant's /clock is less than `flow_window` samples behind (flow control: nothing is
-dropped, nothing skipped), then stops after the configured duration; `realtime` publishes
-v_band(t_wall) at the sample rate from a deadline loop. Profile parameters (`profile.*`) can be
-changed at run time; invalid updates are rejected with the reason and the running profile kept.
+Modes: `sim` publishes samples k = 1 … N, v_band(k / sample_rate), on <ns>/band_velocity_block
+(BandVelocityBlock, up to `block_length` samples per message), strictly in order and never beyond
+the slowest of the plant and the `required_consumers` plus `flow_window` samples, as they report
+on <ns>/flow_progress (app/flow.py FlowGate; nothing is dropped, nothing skipped, a slow consumer
+slows the run). It starts once the plant and every required consumer have reported, follows the
+plant's segment (a plant reset: the profile restarts at t = 0 for the new segment) and stops
+after the configured duration. The global /clock plays no part (two rigs on one domain stay
+apart). `realtime` publishes v_band(t_wall) on <ns>/band_velocity (std_msgs/Float64) at the
+sample rate from a deadline loop. Profile parameters (`profile.*`) can be changed at run time;
+invalid updates are rejected with the reason and the running profile kept.
 """
 
 from __future__ import annotations
 
+import array
+import copy
+import math
 import threading
 import time
 
+import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
-from ..app.contract import BELT_DRIVE_PARAMETERS
+from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
+
+from ..app import cdr
+from ..app.contract import BELT_DRIVE_PARAMETERS, flow_window_problem
+from ..app.flow import FlowGate, qualified_name
 from ..app.plant_session import band_range_problem
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
 from ..core.profiles import BandProfile, ProfileParameters, profile_kinds, profile_to_dict
 from . import common
 from .interfaces import create_publisher, create_subscription
+
+
+def _doubles(values: np.ndarray) -> array.array:
+    """A float64 array as the array.array('d') rclpy takes for float64[] without a per-item check."""
+    out = array.array("d")
+    out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return out
 
 
 class BeltDrive(Node):
@@ -39,6 +58,7 @@ class BeltDrive(Node):
         )
         self.mode, self.sample_rate, self.duration = values["mode"], values["sample_rate"], values["duration"]
         self.flow_window, self.start_delay = values["flow_window"], values["start_delay"]
+        self.block_length = values["block_length"]
         self.wait_for_subscriber = values["wait_for_subscriber"]
         self.realtime_priority = values["realtime_priority"]
         # profile.* parameters: every registered kind's fields (core.profiles.ProfileParameters),
@@ -71,17 +91,33 @@ class BeltDrive(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         common.check_updates(self, specs)
 
-        self.publisher = create_publisher(self, "band_velocity")
         self.total = round(self.duration * self.sample_rate)
-        self.next_k = 1
-        self.plant_k: int | None = None
+        self.next_k = 1  # next band sample of the current segment
+        self.segment: int | None = None
         self.seen_at: float | None = None
+        self.started = False
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         if self.mode == "sim":
-            create_subscription(self, "/clock", self._on_clock)
+            problem = flow_window_problem(self.flow_window, self.block_length)
+            if problem is not None:
+                raise ParameterError(problem)
+            namespace = self.get_namespace()
+            plant = qualified_name(namespace, values["plant_node"])
+            required = tuple(qualified_name(namespace, n) for n in values["required_consumers"])
+            self.gate = FlowGate(self.flow_window, plant, required)
+            self.publisher = create_publisher(self, "band_velocity_block")
+            self._block = BandVelocityBlock()
+            self._block.sample_period = 1.0 / self.sample_rate
+            create_subscription(self, "flow_progress", self._on_progress)
             self.create_timer(0.05, self._pump)
+            self._waiting_logged = 0.0
+            self.get_logger().info(
+                f"sim: paced by {plant} and required consumers {list(required) or 'none'}, "
+                f"block_length {self.block_length}, flow_window {self.flow_window}"
+            )
         else:
+            self.publisher = create_publisher(self, "band_velocity")
             common.enter_realtime(self.realtime_priority, self)
             self._thread = threading.Thread(target=self._realtime_loop, daemon=True)
             self._thread.start()
@@ -92,8 +128,8 @@ class BeltDrive(Node):
     def _complete_profile_update(self, params: list[Parameter]) -> list[Parameter]:
         """A change of profile.kind also sets the new kind's own fields (no value of another kind)."""
         updates = {p.name.removeprefix("profile."): p.value for p in params if p.name.startswith("profile.")}
-        if "kind" not in updates:
-            return params
+        if not isinstance(updates.get("kind"), str):
+            return params  # no kind change, or a kind that is no string (refused with its reason)
         extra = self.profile_parameters.completed(updates)
         given = {p.name for p in params}
         return params + [
@@ -117,18 +153,24 @@ class BeltDrive(Node):
                         successful=False,
                         reason=f"profile.{name}={value!r} is not valid; expected a string",
                     )
-            elif not isinstance(value, float | int) or isinstance(value, bool):
+            elif not isinstance(value, float | int) or isinstance(value, bool) or not math.isfinite(value):
                 return SetParametersResult(
-                    successful=False, reason=f"profile.{name}={value!r} is not valid; expected a number"
+                    successful=False,
+                    reason=f"profile.{name}={value!r} is not valid; expected a finite number",
                 )
+        given = ", ".join(f"profile.{k}={v!r}" for k, v in updates.items())
+        before = copy.deepcopy(self.profile_parameters)  # a refused update leaves no trace
         try:
             profile = self.profile_parameters.apply(updates)
         except (ParameterError, ValueError, TypeError) as exc:
-            self.get_logger().warning(f"profile update rejected: {exc}")
-            return SetParametersResult(successful=False, reason=str(exc))
+            self.profile_parameters = before
+            reason = f"{given} refused: {exc}"
+            self.get_logger().warning(f"profile update rejected: {reason}")
+            return SetParametersResult(successful=False, reason=reason)
         problem = self._band_problem(profile)
         if problem is not None:
-            reason = f"profile {profile_to_dict(profile)} refused: {problem}"
+            self.profile_parameters = before
+            reason = f"{given} refused: profile {profile_to_dict(profile)}: {problem}"
             self.get_logger().warning(f"profile update rejected: {reason}")
             return SetParametersResult(successful=False, reason=reason)
         self.profile = profile
@@ -143,33 +185,69 @@ class BeltDrive(Node):
         value = float(self.profile(k / self.sample_rate))
         return value if common.finite(value) else 0.0
 
-    def _on_clock(self, msg: Clock) -> None:
-        k = round((msg.clock.sec + msg.clock.nanosec * 1e-9) * self.sample_rate)
-        if self.plant_k is None:
+    def _on_progress(self, msg: FlowProgress) -> None:
+        if not self.gate.report(msg.participant, int(msg.segment), int(msg.samples)):
+            return
+        if self.seen_at is None and self.gate.segment is not None:
             self.seen_at = time.monotonic()
-            self.get_logger().info(f"plant clock seen at sample {k}")
-        self.plant_k = k if self.plant_k is None else max(self.plant_k, k)
+            self.get_logger().info(f"plant seen: segment {self.gate.segment}")
         self._pump()
 
     def _pump(self) -> None:
-        """Sim flow control: publish samples up to plant sample + flow_window, never beyond N."""
-        if self.plant_k is None or self.next_k > self.total:
+        """Sim flow control: publish band blocks up to the gate's limit, never beyond N."""
+        segment = self.gate.segment
+        if segment is None or self.seen_at is None:
             return
-        if (
-            time.monotonic() - self.seen_at < self.start_delay
-            or self.publisher.get_subscription_count() == 0
-            or not common.subscribed_by(self, [self.publisher.topic_name], self.wait_for_subscriber)
-        ):
-            return
-        self.wait_for_subscriber = ""  # seen once: no need to ask the graph again
-        limit = min(self.total, self.plant_k + self.flow_window)
-        msg = Float64()
-        while self.next_k <= limit:
-            msg.data = self._sample(self.next_k)
-            self.publisher.publish(msg)
-            self.next_k += 1
+        if segment != self.segment:
+            if self.segment is not None:
+                self.get_logger().info(f"plant segment {segment}: profile restarts at t = 0")
+            self.segment, self.next_k = segment, 1
         if self.next_k > self.total:
-            self.get_logger().info(f"sim: all {self.total} band samples published")
+            return
+        if not self.started and not self._may_start():
+            return
+        limit = self.gate.limit(self.total)
+        msg = self._block
+        msg.segment = segment
+        while self.next_k <= limit:
+            n = min(self.block_length, limit - self.next_k + 1)
+            k = np.arange(self.next_k, self.next_k + n, dtype=float)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = cdr.stamp_of(self.next_k / self.sample_rate)
+            msg.first_sample_index = self.next_k - 1
+            msg.band_velocity = _doubles(self._samples(k))
+            self.publisher.publish(msg)
+            self.next_k += n
+        if self.next_k > self.total:
+            self.get_logger().info(f"sim: all {self.total} band samples of segment {segment} published")
+
+    def _may_start(self) -> bool:
+        """Plant and required consumers reported, discovery time passed, the plant subscribed."""
+        missing = self.gate.missing()
+        now = time.monotonic()
+        if missing:
+            if now - self._waiting_logged > 5.0:
+                self._waiting_logged = now
+                self.get_logger().info(f"sim: waiting for flow_progress from {missing}")
+            return False
+        waiting = None
+        if now - self.seen_at < self.start_delay:
+            return False
+        if self.publisher.get_subscription_count() == 0:
+            waiting = "the plant's subscription to the band blocks"
+        elif not common.subscribed_by(self, [self.publisher.topic_name], self.wait_for_subscriber):
+            waiting = f"a subscription of {self.wait_for_subscriber}* to the band blocks"
+        if waiting is not None:
+            if now - self._waiting_logged > 5.0:
+                self._waiting_logged = now
+                self.get_logger().info(f"sim: waiting for {waiting}")
+            return False
+        self.started = True
+        self.get_logger().info("sim: every participant reported; sending band samples")
+        return True
+
+    def _samples(self, k: np.ndarray) -> np.ndarray:
+        values = np.asarray(self.profile(k / self.sample_rate), dtype=float)
+        return np.where(np.isfinite(values), values, 0.0)
 
     def _realtime_loop(self) -> None:
         loop = common.DeadlineLoop(1.0 / self.sample_rate)

@@ -7,6 +7,7 @@ the node is started with `--ros-args -r __ns:=/other`), except /clock and /diagn
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import math
 import os
@@ -19,6 +20,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from ..app import contract
 from ..app.contract import DEFAULT_NAMESPACE, NodeParameter
@@ -92,7 +94,17 @@ def declare(node: Node, spec: NodeParameter, default: Any = None) -> Any:
     and what is valid), then the full descriptor with the range is applied (`describe`).
     """
     value = spec.default if spec.default is not None else default
-    declared = node.declare_parameter(spec.name, value, ParameterDescriptor(description=spec.description))
+    text = ParameterDescriptor(description=spec.description)
+    if spec.type == "string_array":
+        # an empty list would be declared as a byte array: declare the type, no value means []
+        declared = node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, text)
+        given = declared.value if declared.value is not None else list(value or ())
+        checked = spec.check(list(given))
+        if declared.value is None:  # not given: initialize it (an uninitialized one cannot be read)
+            node.set_parameters([Parameter(spec.name, Parameter.Type.STRING_ARRAY, checked)])
+        node.set_descriptor(spec.name, describe(spec, node.describe_parameter(spec.name)))
+        return checked
+    declared = node.declare_parameter(spec.name, value, text)
     checked = spec.check(declared.value)
     node.set_descriptor(spec.name, describe(spec, node.describe_parameter(spec.name)))
     return checked
@@ -226,6 +238,7 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
     """rclpy.init, build the node, spin until SIGINT/SIGTERM, destroy, shut down; exit status."""
     rclpy.init(args=args)
     node: Node | None = None
+    executor: SingleThreadedExecutor | None = None
     status = 0
     try:
         node = make_node()
@@ -250,6 +263,11 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
             if close is not None:
                 close()
             node.destroy_node()
+        if executor is not None:
+            # shut down while the context lives: otherwise Executor.__del__ at exit prints an
+            # InvalidHandle traceback (its SIGINT guard condition is already destroyed)
+            with contextlib.suppress(Exception):
+                executor.shutdown(timeout_sec=1.0)
         rclpy.try_shutdown()
     return status
 

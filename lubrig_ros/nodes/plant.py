@@ -1,27 +1,43 @@
-"""plant node: the rig (app.plant_session.PlantSession) on ROS topics, driven by <ns>/band_velocity.
+"""plant node: the rig (app.plant_session.PlantSession) on ROS topics.
 
-Modes sim | realtime | rig_in_loop; their rules live in app/plant_session.py (unit-tested without
-DDS): sim integrates one sample per band message, in order, equal to core.run.simulate, and
-publishes /clock; realtime modes tick from a deadline loop with the latest good band value.
-Services <ns>/plant/reset and <ns>/plant/pause. Topics, QoS, parameters: app/contract.py.
+Band input in every mode: <ns>/band_velocity_block (lubrig_interfaces/BandVelocityBlock, what
+belt_drive sends in sim mode) and <ns>/band_velocity (std_msgs/Float64, one value per message:
+belt_drive in realtime, foreign rig software). Modes sim | realtime | rig_in_loop; their rules
+live in app/plant_session.py (unit-tested without DDS):
+
+* sim integrates every band block in order with the core stepper (equal to core.run.simulate
+  whatever the block length) and publishes one <ns>/state_block (RigStateBlock) per band block,
+  then <ns>/flow_progress (FlowProgress: this node's fully qualified name, segment, samples
+  published in the segment) that paces belt_drive (app/flow.py); with `publish_clock` also
+  /clock per block and as a 5 Hz heartbeat. Stamps are rig time.
+* realtime / rig_in_loop tick from a deadline loop with the latest good band value and publish
+  one <ns>/state (RigState) per sample, stamped with the node clock (ROS time).
+
+`scalar_topics` adds std_msgs/Float64 displacement, velocity and friction_coefficient per
+sample. A reset (<ns>/plant/reset) starts a new segment at t = 0 and reports it on flow_progress
+at once; <ns>/plant/pause pauses. Topics, QoS, parameters: app/contract.py.
 """
 
 from __future__ import annotations
 
+import array
 import sys
 import threading
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, String
 from std_srvs.srv import SetBool, Trigger
 
+from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress, RigState, RigStateBlock
+
 from ..app import cdr, contract
 from ..app.plant_session import (
+    PlantBlock,
     PlantSample,
     PlantSession,
     PlantSettings,
@@ -34,6 +50,23 @@ from ..app.plant_session import (
 from ..core.params import ParameterError
 from . import common
 from .interfaces import create_publisher, create_service, create_subscription
+
+HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
+BLOCK_FIELDS = (
+    "displacement", "velocity", "friction_coefficient", "friction_force", "band_velocity",
+    "relative_velocity", "belt_travel",
+)
+
+
+def _doubles(values: np.ndarray) -> array.array:
+    """A float64 array as the array.array('d') rclpy takes for float64[] without a per-item check."""
+    out = array.array("d")
+    out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return out
+
+
+def _nothing(_sample: PlantSample) -> None:
+    return None
 
 
 class Plant(Node):
@@ -51,20 +84,37 @@ class Plant(Node):
         )
         self.mode = values["mode"]
         self.wait_for_subscriber = values["wait_for_subscriber"]
+        self.scalar_topics = bool(values["scalar_topics"])
+        self.publish_clock = bool(values["publish_clock"]) and self.mode == "sim"
+        if values["publish_clock"] and self.mode != "sim":
+            self.get_logger().warning("publish_clock applies to sim mode only; no /clock published")
         settings = PlantSettings(values["mode"], values["band_velocity_limit"], values["stale_timeout"])
-        outputs = ("displacement", "velocity", "friction_coefficient", "state")
-        self.pub_x, self.pub_v, self.pub_mu, self.pub_state = (create_publisher(self, n) for n in outputs)
-        self.pub_clock = create_publisher(self, "/clock") if self.mode == "sim" else None
+        self.participant = self.get_fully_qualified_name()
+        if self.mode == "sim":
+            self.pub_block = create_publisher(self, "state_block")
+            self.pub_progress = create_publisher(self, "flow_progress")
+            self.pub_state = None
+        else:
+            self.pub_state = create_publisher(self, "state")
+        self.pub_scalars = (
+            tuple(create_publisher(self, n) for n in ("displacement", "velocity", "friction_coefficient"))
+            if self.scalar_topics else ()
+        )
+        self.pub_clock = create_publisher(self, "/clock") if self.publish_clock else None
         self.pub_diag = create_publisher(self, "/diagnostics")
         self.pub_config = create_publisher(self, "run_config")
         self.pub_complete = create_publisher(self, "run_complete")
-        self._msgs = (Float64(), Float64(), Float64(), JointState(), Clock())
-        self._msgs[3].name = ["mass", "band"]
+        self._state_msg = RigState()
+        self._scalar_msgs = (Float64(), Float64(), Float64())
+        self._clock_msg = Clock()
+        self._announced = False  # sim: first flow_progress sent (the awaited subscriber is there)
+        per_sample = self.mode != "sim" or self.scalar_topics
         self.session = PlantSession(
             base,
             settings,
             config=config_from(base, self._config_values()),
-            on_sample=self._publish,
+            on_sample=self._publish_sample if per_sample else _nothing,
+            on_block=self._publish_block,
             on_complete=lambda done: self.pub_complete.publish(Bool(data=done)),
             log=self._log,
         )
@@ -74,13 +124,14 @@ class Plant(Node):
         self.pub_complete.publish(Bool(data=False))
         # raw (serialized CDR) subscription: about 2x cheaper per message than a Float64 object
         create_subscription(self, "band_velocity", self._on_band_raw, raw=True)
+        create_subscription(self, "band_velocity_block", self._on_band_block)
         create_service(self, "plant/reset", self._on_reset)
         create_service(self, "plant/pause", self._on_pause)
         self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         if self.mode == "sim":
-            self.create_timer(0.2, self._heartbeat)
+            self.create_timer(HEARTBEAT_S, self._heartbeat)
         else:
             sys.setswitchinterval(2e-4)  # let the loop thread take the GIL promptly
             common.enter_realtime(values["realtime_priority"], self)
@@ -94,6 +145,11 @@ class Plant(Node):
 
     def _on_band_raw(self, data: bytes) -> None:
         self.session.band_input(cdr.float64_value(data))  # malformed payload: NaN, rejected
+
+    def _on_band_block(self, msg: BandVelocityBlock) -> None:
+        # foreign senders: a block without a positive period or of another rate is still taken
+        # sample by sample at the plant's own rate (the values are what counts)
+        self.session.band_block(msg.band_velocity, int(msg.segment), int(msg.first_sample_index))
 
     def _log(self, level: str, text: str) -> None:
         getattr(self.get_logger(), level)(text)
@@ -117,9 +173,15 @@ class Plant(Node):
         except ParameterError as exc:
             response.success, response.message = False, str(exc)
             return response
-        self.session.reset(config)
-        self.get_logger().info("reset: rig time back to 0")
-        response.success, response.message = True, "rig reset to t = 0 and the initial state"
+        with self.session.lock:
+            self.session.reset(config)
+            segment = self.session.segment
+            self.pub_config.publish(String(data=config.to_yaml()))
+            if self.mode == "sim" and self._announced:
+                self._publish_progress()  # belt_drive restarts its profile for the new segment
+        self.get_logger().info(f"reset: rig time back to 0, segment {segment}")
+        response.success = True
+        response.message = f"rig reset to t = 0 and the initial state; segment {segment}"
         return response
 
     def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
@@ -128,36 +190,69 @@ class Plant(Node):
         return response
 
     def _heartbeat(self) -> None:
-        """Sim: republish /clock so that a late belt_drive sees where the plant is.
+        """Sim: republish flow_progress (and /clock) so that a late belt_drive sees where we are.
 
         Until the awaited subscriber (the recorder) has subscribed to every output, the plant stays
         silent, so belt_drive does not start and no sample is published before it is recorded.
         """
-        outputs = (self.pub_x, self.pub_v, self.pub_mu, self.pub_state, self.pub_clock)
-        if not common.subscribed_by(self, [p.topic_name for p in outputs], self.wait_for_subscriber):
-            return
-        self.wait_for_subscriber = ""  # seen once: no need to ask the graph again
-        clock = Clock()
-        clock.clock.sec, clock.clock.nanosec = cdr.stamp_of(self.session.time)
+        if not self._announced:
+            outputs = [self.pub_block, *self.pub_scalars]
+            if self.pub_clock is not None:
+                outputs.append(self.pub_clock)
+            if not common.subscribed_by(self, [p.topic_name for p in outputs], self.wait_for_subscriber):
+                return
+            self._announced = True
+            self.get_logger().info(f"sim: flow_progress as {self.participant}")
+        with self.session.lock:
+            self._publish_progress()
+            if self.pub_clock is not None:
+                self._publish_clock(self.session.time)
+
+    def _publish_progress(self) -> None:
+        msg = FlowProgress()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = cdr.stamp_of(self.session.time)
+        msg.participant = self.participant
+        msg.segment = self.session.segment
+        msg.samples = self.session.published
+        self.pub_progress.publish(msg)
+
+    def _publish_clock(self, t: float) -> None:
+        clock = self._clock_msg
+        clock.clock.sec, clock.clock.nanosec = cdr.stamp_of(t)
         self.pub_clock.publish(clock)
 
-    def _publish(self, s: PlantSample) -> None:
-        mx, mv, mmu, state, clock = self._msgs
-        sec, nsec = cdr.stamp_of(s.time)
-        mx.data, mv.data, mmu.data = s.displacement, s.velocity, s.friction_coefficient
-        state.header.stamp.sec, state.header.stamp.nanosec = sec, nsec
-        # joint "mass": x, ẋ, friction force; joint "band": belt travel, the band velocity this
-        # sample was integrated with (so subscribers pair each state with its own v_band), 0
-        state.position = [s.displacement, s.belt_travel]
-        state.velocity = [s.velocity, s.band_velocity]
-        state.effort = [s.friction_force, 0.0]
-        self.pub_x.publish(mx)
-        self.pub_v.publish(mv)
-        self.pub_mu.publish(mmu)
-        self.pub_state.publish(state)
+    def _publish_block(self, block: PlantBlock) -> None:
+        """Sim: one RigStateBlock, then flow_progress and /clock (called with the session lock)."""
+        msg = RigStateBlock()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = cdr.stamp_of(float(block.time[0]))
+        msg.sample_period = block.sample_period
+        msg.first_sample_index = block.first_sample_index
+        msg.segment = block.segment
+        for name in BLOCK_FIELDS:
+            setattr(msg, name, _doubles(getattr(block, name)))
+        self.pub_block.publish(msg)
+        self._publish_progress()
         if self.pub_clock is not None:
-            clock.clock.sec, clock.clock.nanosec = sec, nsec
-            self.pub_clock.publish(clock)
+            self._publish_clock(float(block.time[-1]))
+
+    def _publish_sample(self, s: PlantSample) -> None:
+        """Realtime: one RigState per sample (node clock stamp); scalar topics if asked (all modes)."""
+        if self.scalar_topics:
+            mx, mv, mmu = self._scalar_msgs
+            mx.data, mv.data, mmu.data = s.displacement, s.velocity, s.friction_coefficient
+            for pub, m in zip(self.pub_scalars, self._scalar_msgs, strict=True):
+                pub.publish(m)
+        if self.pub_state is None:
+            return
+        state = self._state_msg
+        state.header.stamp = self.get_clock().now().to_msg()
+        state.sample_index = s.sample_index
+        state.segment = s.segment
+        state.displacement, state.velocity = s.displacement, s.velocity
+        state.friction_coefficient, state.friction_force = s.friction_coefficient, s.friction_force
+        state.band_velocity, state.relative_velocity = s.band_velocity, s.relative_velocity
+        state.belt_travel = s.belt_travel
+        self.pub_state.publish(state)
 
     def _realtime_loop(self) -> None:
         try:

@@ -330,6 +330,58 @@ class Probe:
 
         return self.node.create_subscription(msg_type, topic, callback, qos)
 
+    def consume_blocks(self, namespace: str, delay: float = 0.0, topic: str = "state_block") -> str:
+        """Take <namespace>/state_block as a required consumer of the sim flow control.
+
+        Records every RigStateBlock in ``messages[<namespace>/<topic>]`` and reports on
+        <namespace>/flow_progress (participant: this node's fully qualified name, returned; give
+        it to belt_drive's ``required_consumers``): samples 0 once the subscription has matched
+        the plant's publisher, then after every block taken, and every 0.2 s as a heartbeat.
+        `delay`: seconds slept in every block callback (a deliberately slow consumer).
+        """
+        from lubrig_interfaces.msg import FlowProgress, RigStateBlock
+        from lubrig_ros.app import contract
+        from lubrig_ros.nodes.interfaces import qos_profile
+
+        block_name = contract.resolve(namespace, topic)
+        qos = qos_profile(contract.BLOCK_QOS)
+        progress = self.node.create_publisher(
+            FlowProgress, contract.resolve(namespace, "flow_progress"), qos
+        )
+        participant = self.node.get_fully_qualified_name()
+        state = {"ready": False, "segment": 0, "samples": 0}
+        lock = threading.Lock()
+        messages, times = self.messages[block_name], self.times[block_name]
+
+        def report() -> None:
+            msg = FlowProgress(participant=participant)
+            msg.segment, msg.samples = state["segment"], state["samples"]
+            progress.publish(msg)
+
+        def on_block(msg: Any) -> None:
+            if delay:
+                time.sleep(delay)
+            messages.append(msg)
+            times.append(time.monotonic())
+            with lock:
+                if msg.segment >= state["segment"]:
+                    state["segment"] = msg.segment
+                    state["samples"] = msg.first_sample_index + len(msg.displacement)
+                if state["ready"]:
+                    report()
+
+        sub = self.node.create_subscription(RigStateBlock, block_name, on_block, qos)
+
+        def heartbeat() -> None:
+            with lock:
+                if not state["ready"] and sub.get_publisher_count() > 0:
+                    state["ready"] = True
+                if state["ready"]:
+                    report()
+
+        self.node.create_timer(0.2, heartbeat)
+        return participant
+
     def publisher(self, topic: str, msg_type: type, qos: Any) -> Any:
         """A publisher of the probe node."""
         return self.node.create_publisher(msg_type, topic, qos)
