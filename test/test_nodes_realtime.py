@@ -104,7 +104,9 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     assert list(frame.frequency) == sorted(frame.frequency, reverse=True)  # row 0: highest
     assert all(math.isfinite(v) for v in frame.power)
     end = frame.end.sec + 1e-9 * frame.end.nanosec  # the plant's stamps: ROS time
-    assert abs(end - time.time()) < 5.0, end
+    # ROS time of this run (not rig time since 0): between the test's start and now; how far the
+    # analysis lags behind is a bench figure, not asserted
+    assert wall_start - 1.0 <= end <= time.time() + 1.0, (wall_start, end)
     assert probe.wait_for(lambda: probe.messages[f"{NS}/stability"], 60)
     flags = probe.messages[f"{NS}/stability"][-1]
     assert flags.linear_zone == StabilityFlags.ZONE_FALLING and flags.band_velocity == 1e-7
