@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
-from matplotlib.ticker import LogLocator, NullFormatter
+from matplotlib.ticker import LogLocator, NullFormatter, NullLocator
 
 from ..core.friction import friction_coefficient, friction_landmarks
 from ..core.integrator import Trajectory
@@ -118,6 +118,19 @@ def _velocity_grid(lo: float, hi: float, linthresh: float | None) -> np.ndarray:
     return np.unique(np.concatenate([-side[::-1], core, side]))
 
 
+def _symlog_ticks(lo: float, hi: float, linthresh: float) -> list[float]:
+    """0 and whole decades beyond linthresh on each side, every second one past six decades."""
+    first = int(np.ceil(np.log10(linthresh * 1.5)))
+    sides = []
+    for reach in (-lo, hi):
+        last = int(np.floor(np.log10(reach))) if reach > linthresh else first - 1
+        sides.append(list(range(first, last + 1)))
+    step = 2 if max(len(d) for d in sides) > 6 else 1
+    negative = [-(10.0**k) for k in sides[0][::-1] if (sides[0][-1] - k) % step == 0]
+    positive = [10.0**k for k in sides[1] if (sides[1][-1] - k) % step == 0]
+    return [*negative, 0.0, *positive]
+
+
 def _zones(rig: RigParameters) -> list[tuple[int, float, float]]:
     """[(zone, |v| from, |v| to)] of the law (empty when it has no peak)."""
     peak, minimum = friction_landmarks(rig.friction)
@@ -151,8 +164,12 @@ def mu_velocity_figure(
     if reverses:
         reach = PAD_FACTOR * float(np.max(np.abs(v)))
         linthresh = peak.velocity if peak is not None and peak.velocity < reach else reach * 1e-3
-        lo, hi = -reach, reach
-        ax.set_xscale("symlog", linthresh=linthresh, linscale=0.5)
+        # each side padded from its own extreme (at least to the stick velocity)
+        lo = -max(PAD_FACTOR * float(max(-v.min(), 0.0)), 2.0 * linthresh)
+        hi = max(PAD_FACTOR * float(max(v.max(), 0.0)), 2.0 * linthresh)
+        ax.set_xscale("symlog", linthresh=linthresh, linscale=1.0)
+        ax.set_xticks(_symlog_ticks(lo, hi, linthresh))
+        ax.xaxis.set_minor_locator(NullLocator())
         grid = _velocity_grid(lo, hi, linthresh)
     else:
         lo, hi = float(v.min()) / PAD_FACTOR, float(v.max()) * PAD_FACTOR
