@@ -1,4 +1,4 @@
-"""`lubrig report BAG --out DIR`: figures, summary.json and report.md of a recorded run."""
+"""`lubrig report BAG --out DIR [--force]`: figures, summary.json, report.md and report.html."""
 
 from __future__ import annotations
 
@@ -6,13 +6,14 @@ import argparse
 from pathlib import Path
 
 from ..report import write_report
+from .common import add_force
 
 
 def run(args: argparse.Namespace) -> int:
     """Entry of `lubrig report`."""
     bag = Path(args.bag)
     out = Path(args.out) if args.out else bag.parent / "report"
-    page = write_report(bag, out)
+    page = write_report(bag, out, force=args.force)
     print(f"report: {page}")
     return 0
 
@@ -23,8 +24,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "report",
         help="report of a recorded bag (wavelet, time history, phase, friction figures)",
         description="Rebuild the run from a bag written by the recorder and write study-style "
-        "figures, summary.json and report.md to --out.",
+        "figures, summary.json, report.md and report.html (figures embedded) to --out. An existing "
+        "non-empty --out is refused unless --force.",
     )
     parser.add_argument("bag", metavar="BAG", help="bag directory written by the recorder")
     parser.add_argument("--out", metavar="DIR", help="output directory (default: BAG/../report)")
+    add_force(parser)
     parser.set_defaults(func=run)

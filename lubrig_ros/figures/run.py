@@ -16,6 +16,8 @@ from .wavelet import analysis_figure
 WAVELET_FIGURE = "wavelet.png"
 #: Every figure a run directory may hold (the report pages show them in this order).
 RUN_FIGURES = (WAVELET_FIGURE, *FIGURES)
+#: Every file write_run_directory may write (what --force clears before a new run).
+RUN_FILES = (rundir.TIMESERIES, rundir.CONFIG, rundir.SUMMARY, *RUN_FIGURES)
 
 
 def wavelet_title(config: RunConfig) -> str:
