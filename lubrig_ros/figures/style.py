@@ -76,6 +76,16 @@ def coupling_text(coupling: str | RigParameters) -> str:
     return f"{coupling} convention" if coupling in CONVENTIONS else str(coupling)
 
 
+def summary_coupling(summary: dict[str, Any]) -> str:
+    """The coupling text of a summary.json ('paper convention (γ = 0.0159)' or 'γ = 0.05')."""
+    gamma = summary.get("velocity_coupling")
+    text = f"γ = {gamma:.3g}" if isinstance(gamma, (int, float)) else ""
+    convention = summary.get("convention")
+    if convention in CONVENTIONS:
+        return f"{convention} convention" + (f" ({text})" if text else "")
+    return text or "velocity coupling not stated"
+
+
 def run_title(name: str, coupling: str | RigParameters, what: str = "") -> str:
     """'What — case 7, paper convention (γ = 0.0159), v_rel = v_band − γ ẋ'."""
     head = f"{what} — " if what else ""

@@ -99,7 +99,13 @@ def friction_velocity_figure(
     ax_v.plot(
         trajectory.time, trajectory.band_velocity, label="band v_band (dashed, on top)", **style.BAND_STYLE
     )
-    ax_v.set_ylabel("velocity (m/s)")
+    band_top = float(np.max(np.abs(trajectory.band_velocity)))
+    if band_top > 0 and float(np.max(np.abs(trajectory.relative_velocity))) > 20.0 * band_top:
+        # slips far faster than the band (stick-slip): a symmetric log axis keeps v_band visible
+        ax_v.set_yscale("symlog", linthresh=0.1 * band_top)
+        ax_v.set_ylabel("velocity (m/s), symlog")
+    else:
+        ax_v.set_ylabel("velocity (m/s)")
     ax_v.legend(loc="upper right", fontsize=style.LEGEND_SIZE)
     ax_v.grid(alpha=0.3)
     ax_m.plot(trajectory.time, trajectory.velocity, lw=0.7, color=style.COLOURS["velocity"], label="mass ẋ")
