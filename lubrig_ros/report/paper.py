@@ -371,7 +371,8 @@ def comparison_markdown(
         f"Figures are in `{FIGURES}/` next to this page (every figure of every case of the presets' "
         "reading is shown below); the run directories (CSV, config.yaml, summary.json) are written "
         "to `runs/<reading>/caseNN/` beside the page by `lubrig paper --out`, not copied into docs. "
-        f"`{HTML_PAGE}` beside this page is the same page with every figure embedded (one file).",
+        f"`lubrig paper --out` also writes `{HTML_PAGE}` beside `{PAGE}`: this page with every "
+        "figure embedded (one file; not copied into docs).",
         "",
         "Only s = γ · A / A_default enters the dynamics of v_rel (model doc §5), so each reading is "
         "one point of the coupling scan below. Regenerate with `lubrig paper --out DIR --docs docs` "
