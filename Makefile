@@ -41,7 +41,7 @@ setup: $(STAMP) $(IFACE_STAMP)
 # The main job: the node suite (belt_drive, plant, analysis, recorder) on study case 1 in simulated
 # time, recorded to runs/latest/bag, then the report; the last line printed is the report's path.
 run: setup
-	$(VENV)/bin/lubrig rig --case 1 --duration 10 --bag runs/latest
+	$(VENV)/bin/lubrig rig --case 1 --duration 10 --run-dir runs/latest --force
 
 # The whole suite (ROS node processes over DDS included); the README's test command.
 # Every ROS test file runs in a pytest process of its own (lubrig_testkit/suite.py says why).

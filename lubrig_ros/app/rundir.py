@@ -45,6 +45,37 @@ def check_output_dir(out: Path, option: str = "--out") -> Path:
     return out
 
 
+def prepare_output_dir(
+    out: Path, force: bool = False, option: str = "--out", owned: Sequence[str] = ()
+) -> Path:
+    """Refuse an existing non-empty output directory unless force; with force clear what is owned.
+
+    `owned` names the files and folders the command writes (e.g. timeseries.csv, the figures,
+    runs/): with force those that exist are removed first, so no stale output of an earlier run
+    (another case's wavelet.png) is left beside the new one; anything else in the folder is kept.
+    Returns out (not created here). RunDirError names the folder, a few of its entries and --force.
+    """
+    import shutil
+
+    out = check_output_dir(Path(out), option)
+    if not out.is_dir():
+        return out
+    entries = sorted(p.name for p in out.iterdir())
+    if entries and not force:
+        shown = ", ".join(entries[:3]) + (", …" if len(entries) > 3 else "")
+        raise RunDirError(
+            f"{option} {str(out)!r} exists and is not empty ({len(entries)} entries: {shown}); "
+            "pass --force to replace its contents, or choose a new folder"
+        )
+    for name in owned:
+        path = out / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        elif path.exists() or path.is_symlink():
+            path.unlink()
+    return out
+
+
 def write_json(path: Path, data: dict[str, Any]) -> None:
     """Write JSON atomically (temporary file, then rename) so a reader never sees half a file."""
     write_text_atomic(Path(path), json.dumps(data, indent=2) + "\n")

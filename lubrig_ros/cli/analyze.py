@@ -54,7 +54,12 @@ def analyze_run(
         policy,
     )
     section = dict(analysis.summary_section(), figure="wavelet.png")
-    title = f"{directory.name}: displacement and its wavelet power"
+    from ..figures import style
+
+    title = style.run_title(
+        str(summary.get("name", directory.name)), style.summary_coupling(summary),
+        "Displacement and its wavelet power",
+    )
     fig = analysis_figure(analysis, title, summary.get("natural_frequency_hz"))
     fig.savefig(directory / "wavelet.png", dpi=120)
     rundir.update_summary(directory, "wavelet", section)

@@ -46,6 +46,15 @@ def allow_negative_numbers(parser: argparse.ArgumentParser) -> None:
     parser._negative_number_matcher = NEGATIVE_NUMBER
 
 
+def add_force(parser: argparse.ArgumentParser) -> None:
+    """--force: replace the outputs in an existing, non-empty output folder (else refused)."""
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="write into an existing non-empty output folder, replacing this command's files there",
+    )
+
+
 def add_run_source(parser: argparse.ArgumentParser) -> None:
     """--case N | --config FILE (neither: the default run, config/rig.yaml)."""
     source = parser.add_mutually_exclusive_group()

@@ -11,10 +11,12 @@ import argparse
 import time
 from pathlib import Path
 
+from ..app.rundir import prepare_output_dir
 from ..app.study import read_scan_csv, write_scan_csv
 from ..core.presets import config_dir
-from ..report.paper import copy_to_docs, run_paper
-from .common import parse_finite
+from ..report.paper import HTML_PAGE, MIN_DURATION, PAGE_OUTPUTS, copy_to_docs, run_paper, total_rig_time
+from .common import add_force, parse_finite
+from .progress import Progress
 
 SCAN_TABLE = "coupling_scan.csv"
 
@@ -27,7 +29,11 @@ def committed_scan() -> Path:
 def run(args: argparse.Namespace) -> int:
     """Entry of `lubrig paper`."""
     duration = parse_finite("--duration", args.duration, "a rig time in s (>= 4)")
-    out = Path(args.out)
+    if duration < MIN_DURATION:
+        raise ValueError(f"--duration {duration!r} is not valid; expected at least {MIN_DURATION:g} s")
+    out = prepare_output_dir(
+        Path(args.out), args.force, "--out", (*PAGE_OUTPUTS, SCAN_TABLE, "scan")
+    )
     started = time.perf_counter()
     if args.recompute_scan:
         from ..sweep.engine import LOCAL, SERIAL
@@ -48,8 +54,13 @@ def run(args: argparse.Namespace) -> int:
         source = f"read from {SCAN_TABLE}"
     out.mkdir(parents=True, exist_ok=True)
     write_scan_csv(out / SCAN_TABLE, scan)
-    page = run_paper(out, duration, scan=scan, scan_source=source)
+    bar = Progress("lubrig paper", total_rig_time(duration))
+    try:
+        page = run_paper(out, duration, scan=scan, scan_source=source, force=True, progress=bar.update)
+    finally:
+        bar.finish()
     print(f"lubrig paper: done in {time.perf_counter() - started:.1f} s; comparison: {page}")
+    print(f"lubrig paper: the same page with every figure embedded: {page.parent / HTML_PAGE}")
     if args.docs:
         docs = Path(args.docs)
         target = copy_to_docs(page, docs)
@@ -66,9 +77,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="reproduce the study offline and score every statement per velocity-coupling reading",
         description="Friction curve, stability maps, stick-slip at 2e-8 m/s and the ten Table 1 cases "
         "for every named velocity coupling (physical, paper, hertz), the scorecard of every statement "
-        "of the study, the coupling scan's figures, and comparison.md with every figure embedded.",
+        "of the study, the coupling scan's figures, comparison.md with every figure linked and "
+        "comparison.html with every figure embedded. Progress is shown on a terminal.",
     )
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
+    add_force(parser)
     parser.add_argument("--duration", default="20", metavar="S", help="rig time per case, s (20)")
     scan = parser.add_mutually_exclusive_group()
     scan.add_argument("--scan", metavar="CSV", help="coupling-scan table (default: the committed one)")

@@ -1,4 +1,4 @@
-"""`lubrig report BAG --out DIR`: figures, summary.json and report.md of a recorded run."""
+"""`lubrig report BAG --out DIR [--force]`: figures, summary.json, report.md and report.html."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from pathlib import Path
 from ..bag.errors import BagError
 from ..bag.verify import refuse_damaged
 from ..report import write_report
+from .common import add_force
 
 
 def run(args: argparse.Namespace) -> int:
@@ -18,7 +19,7 @@ def run(args: argparse.Namespace) -> int:
     except BagError as exc:
         raise ValueError(str(exc)) from None
     out = Path(args.out) if args.out else bag.parent / "report"
-    page = write_report(bag, out)
+    page = write_report(bag, out, force=args.force)
     print(f"report: {page}")
     return 0
 
@@ -29,8 +30,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "report",
         help="report of a recorded bag (wavelet, time history, phase, friction figures)",
         description="Rebuild the run from a bag written by the recorder and write study-style "
-        "figures, summary.json and report.md to --out.",
+        "figures, summary.json, report.md and report.html (figures embedded) to --out. An existing "
+        "non-empty --out is refused unless --force.",
     )
     parser.add_argument("bag", metavar="BAG", help="bag directory written by the recorder")
     parser.add_argument("--out", metavar="DIR", help="output directory (default: BAG/../report)")
+    add_force(parser)
     parser.set_defaults(func=run)

@@ -32,10 +32,12 @@ from pathlib import Path
 
 from ..app.contract import DEFAULT_NAMESPACE, RECORDER_PARTICIPANT, validate_namespace
 from ..app.discovery import discovery_environment
+from ..app.rundir import prepare_output_dir
 from ..app.selection import RunSelection
 from ..core.params import CONVENTIONS, ParameterError
 from ..core.presets import RunConfig, config_dir
 from .main import CommandError
+from .progress import Progress
 
 NODES = ("plant", "belt_drive", "analysis")
 GRACE_S = 10.0
@@ -114,9 +116,12 @@ def _ros_args(params: dict[str, object], params_file: Path, namespace: str = DEF
 
 
 def _wait_complete(
-    deadline: float, procs: dict[str, subprocess.Popen], namespace: str = DEFAULT_NAMESPACE
+    deadline: float,
+    procs: dict[str, subprocess.Popen],
+    namespace: str = DEFAULT_NAMESPACE,
+    progress: Progress | None = None,
 ) -> bool:
-    """Sim: wait for <ns>/run_complete = true (latched) from the plant."""
+    """Sim: wait for <ns>/run_complete = true (latched) from the plant (rig time from /clock)."""
     import rclpy
     from rclpy.context import Context
     from rclpy.node import Node
@@ -133,6 +138,13 @@ def _wait_complete(
     node.create_subscription(
         Bool, spec.name, lambda m: done.append(True) if m.data else None, qos_profile(spec.qos)
     )
+    if progress is not None and progress.enabled:  # rig time on a terminal: the plant's /clock
+        from rosgraph_msgs.msg import Clock
+
+        node.create_subscription(
+            Clock, "/clock", lambda m: progress.update(m.clock.sec + 1e-9 * m.clock.nanosec),
+            qos_profile(contract.topic("/clock").qos),
+        )
     from rclpy.executors import SingleThreadedExecutor
 
     executor = SingleThreadedExecutor(context=context)
@@ -212,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise CommandError(str(exc)) from None
     mode = args.mode
-    bag = Path(args.bag).resolve()
+    bag = prepare_output_dir(Path(args.run_dir), args.force, "--run-dir").resolve()
     bag.mkdir(parents=True, exist_ok=True)
     logs = bag / "logs"
     logs.mkdir(exist_ok=True)
@@ -274,15 +286,20 @@ def run(args: argparse.Namespace) -> int:
         start = time.monotonic()
         if mode == "sim":
             limit = args.timeout if args.timeout else max(60.0, 10.0 * config.duration)
-            complete = _wait_complete(start + limit, procs, namespace)
+            bar = Progress("lubrig rig", config.duration)
+            complete = _wait_complete(start + limit, procs, namespace, bar)
+            bar.finish()
             if not complete:
                 dead = [n for n, p in procs.items() if p.poll() is not None]
                 why = f"process(es) {dead} exited" if dead else f"timeout after {limit:g} s"
                 raise CommandError(f"sim run did not complete ({why}); see {logs}")
         else:
             end = start + config.duration
+            bar = Progress("lubrig rig", config.duration)
             while time.monotonic() < end and all(p.poll() is None for p in procs.values()):
                 time.sleep(0.1)
+                bar.update(time.monotonic() - start)
+            bar.finish()
         wall = time.monotonic() - start
     except KeyboardInterrupt:
         print("lubrig rig: interrupted, stopping the nodes", file=sys.stderr)
@@ -306,7 +323,7 @@ def run(args: argparse.Namespace) -> int:
     if with_recorder and not args.no_report and not math.isnan(wall):
         from ..report import write_report
 
-        page = write_report(bag / "bag", bag / "report")
+        page = write_report(bag / "bag", bag / "report", force=True)  # inside the checked run folder
         print(f"report: {page}")
     return 0
 
@@ -339,7 +356,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--convention", choices=CONVENTIONS, help="override the convention")
     parser.add_argument("--duration", type=_positive, metavar="S", help="run length in s")
-    parser.add_argument("--bag", required=True, metavar="DIR", help="output directory")
+    parser.add_argument(
+        "--run-dir", "--bag", dest="run_dir", required=True, metavar="DIR",
+        help="run folder: run_config.yaml, logs/, the bag in DIR/bag, the report in DIR/report "
+        "(--bag is the old name); an existing non-empty DIR is refused unless --force",
+    )
+    parser.add_argument("--force", action="store_true", help="reuse a non-empty run folder")
     parser.add_argument("--timeout", type=_positive, metavar="S", help="sim: wall-time limit")
     parser.add_argument(
         "--network",

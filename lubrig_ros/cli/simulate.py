@@ -5,7 +5,9 @@ Output directory layout (documented in docs/simulate.md):
   band_velocity_m_s,relative_velocity_m_s`, one row per sample, uniform sampling from t = 0;
 - config.yaml: the full run configuration (feed it back with --config to repeat the run);
 - summary.json: stationary measures of the second half of the run;
-- time_history.png, phase.png, friction_velocity.png.
+- time_history.png, phase.png, friction_velocity.png, mu_velocity.png (figures/timeseries.py).
+
+An existing non-empty --out is refused unless --force (which replaces these files there).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from ..app import rundir
 from ..app.selection import RunSelection
 from ..core.presets import RunConfig
 from ..core.run import simulate, summarize
-from .common import add_run_selection, selection_from_args
+from .common import add_force, add_run_selection, selection_from_args
 
 
 def config_from_args(args: argparse.Namespace) -> RunConfig:
@@ -30,8 +32,10 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
 
 def run(args: argparse.Namespace) -> int:
     """Entry of `lubrig simulate`."""
+    from ..figures.run import RUN_FILES  # matplotlib only when drawing
+
     config = config_from_args(args)
-    out = rundir.check_output_dir(Path(args.out))
+    out = rundir.prepare_output_dir(Path(args.out), args.force, "--out", RUN_FILES)
     started = time.perf_counter()
     trajectory = simulate(config)
     elapsed = time.perf_counter() - started
@@ -56,8 +60,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "simulate",
         help="integrate one run offline (time series, figures, summary.json)",
         description="Integrate the rig offline and write timeseries.csv, config.yaml, summary.json "
-        "and figures to --out.",
+        "and figures to --out (refused when --out exists and is not empty, unless --force).",
     )
     add_run_selection(parser)
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
+    add_force(parser)
     parser.set_defaults(func=run)

@@ -14,18 +14,15 @@ from matplotlib.figure import Figure
 from ..core.friction import friction_coefficient, friction_minimum, friction_peak, friction_slope
 from ..core.params import FrictionParameters, RigParameters
 from ..core.stability import critical_damping_ratio
+from . import style
 
 #: Velocity range (m/s) of the tabulated curve: u = v0/v spans 1e3 … 1e-10 over it.
 CURVE_V_MIN = 1e-15
 CURVE_V_MAX = 1e-2
 CSV_HEADER = "velocity_m_s,friction_coefficient,dmu_dv_s_per_m"
 
-_ZONE_COLOURS = {1: "#d8ecd8", 2: "#f6d6d0", 3: "#d6e2f3"}
-_ZONE_LABELS = {
-    1: "zone 1\nrising\n(stable)",
-    2: "zone 2\nfalling\n(unstable unless damped)",
-    3: "zone 3\nrising, viscous\n(stable)",
-}
+_ZONE_COLOURS = style.ZONE_COLOURS
+_ZONE_LABELS = style.ZONE_LABELS
 
 
 def friction_curve_table(
@@ -101,8 +98,11 @@ def plot_friction_curve(
     ax.set_xlim(v_min, v_max)
     ax.set_ylim(0.0, 1.15 * max(peak.mu, float(table[:, 1].max())))  # whole curve, room for labels
     ax.set_xlabel("sliding velocity v (m/s)")
-    ax.set_ylabel("friction coefficient μ (–)")
-    ax.set_title(f"Friction law of the lubricated interface (A = {params.contact_area:.3g} m²)")
+    ax.set_ylabel("friction coefficient μ (–); odd: μ(−v) = −μ(v)")
+    ax.set_title(
+        f"Friction law of the lubricated interface (A = {params.contact_area:.3g} m²)",
+        fontsize=style.TITLE_SIZE,
+    )
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(loc="center right", fontsize=9, framealpha=0.9)
     return fig
@@ -161,7 +161,10 @@ def plot_stability_map(
     ax.set_ylim(zeta_min, zeta_max)
     ax.set_xlabel("band velocity v_band (m/s)")
     ax.set_ylabel("damping ratio ζ (–)")
-    ax.set_title(f"Linear stability of steady sliding — {rig.coupling_label}, v_rel = v_band − γ ẋ")
+    ax.set_title(
+        f"Linear stability of steady sliding — {rig.coupling_label}, v_rel = v_band − γ ẋ",
+        fontsize=style.TITLE_SIZE,
+    )
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(loc="lower right", fontsize=9, framealpha=0.9)
     return fig

@@ -5,7 +5,10 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
+
+from . import style
 
 #: Named readings drawn as vertical markers: {label: s}.
 Readings = dict[str, float]
@@ -71,11 +74,12 @@ def verdict_map_figure(s: np.ndarray, keys: list[str], agree: np.ndarray, readin
     edges = np.sqrt(s[1:] * s[:-1])
     x = np.concatenate([[s[0] ** 2 / edges[0]], edges, [s[-1] ** 2 / edges[-1]]])
     y = np.arange(len(keys) + 1) - 0.5
-    ax.pcolormesh(x, y, agree.astype(float), cmap="RdYlGn", vmin=0, vmax=1, shading="flat")
+    binary = ListedColormap(list(style.BINARY_COLOURS), name="lubrig_binary")
+    ax.pcolormesh(x, y, agree.astype(float), cmap=binary, vmin=0, vmax=1, shading="flat")
     ax.set_xscale("log")
     ax.set_yticks(range(len(keys)), keys, fontsize=7)
     ax.invert_yaxis()
-    ax.set_xlabel("coupling s = γ · A / A_default (green: agrees, red: differs)")
+    ax.set_xlabel("coupling s = γ · A / A_default (yellow: agrees, dark blue: differs)")
     ax.set_title("Verdict of every statement over the coupling scan")
     _mark(ax, readings)
     fig.tight_layout()

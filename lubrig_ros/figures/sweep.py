@@ -16,6 +16,8 @@ import pyarrow.parquet as pq
 from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm, Normalize
 from matplotlib.figure import Figure
 
+from . import style
+
 #: (file name, column, colour-bar label, log colour scale)
 MAPS = (
     ("map_amplitude.png", "x_peak_to_peak", "stationary x peak-to-peak (m)", True),
@@ -102,9 +104,9 @@ def map_figure(
     label = note or label
     fig = Figure(figsize=(6.4, 4.8), constrained_layout=True)
     ax = fig.add_subplot()
-    cmap, norm = "viridis", _norm(values, log)
+    cmap, norm = style.MAP_CMAP, _norm(values, log)
     if column == "linear_stable":
-        cmap = ListedColormap(["tab:red", "tab:green"])
+        cmap = ListedColormap(list(style.BINARY_COLOURS), name="lubrig_binary")
         norm = BoundaryNorm([-0.5, 0.5, 1.5], 2)
     x_axis = axes[0]
     x = data[x_axis["parameter"]]

@@ -1,4 +1,4 @@
-"""Write a run report from a bag: study-style figures, summary.json and report.md."""
+"""Write a run report from a bag: study-style figures, summary.json, report.md and report.html."""
 
 from __future__ import annotations
 
@@ -6,15 +6,30 @@ from pathlib import Path
 from typing import Any
 
 from ..app.analysis import analyze_displacement, whole_record
-from ..app.rundir import check_output_dir
+from ..app.rundir import prepare_output_dir
 from ..core.run import summarize
 from .frombag import trajectory_from_bag
+from .html import write_html_page
 
-FIGURE_FILES = ("wavelet.png", "time_history.png", "phase.png", "friction_velocity.png")
+FIGURE_FILES = ("wavelet.png", "time_history.png", "phase.png", "friction_velocity.png", "mu_velocity.png")
+PAGE = "report.md"
+HTML_PAGE = "report.html"
 
 
 def _fmt(value: Any, spec: str = ".4g") -> str:
     return format(value, spec) if isinstance(value, (int, float)) else str(value)
+
+
+def run_heading(summary: dict[str, Any]) -> str:
+    """'case 7, paper convention (γ = 0.0159)' of a summary (the run's name, not a folder's)."""
+    name = str(summary["name"])
+    if name.startswith("case") and name[4:].isdigit():
+        name = f"case {int(name[4:])}"
+    gamma = summary.get("velocity_coupling")
+    coupling = f"γ = {gamma:.3g}" if isinstance(gamma, (int, float)) else ""
+    if summary.get("convention") != "explicit":
+        coupling = f"{summary.get('convention')} convention" + (f" ({coupling})" if coupling else "")
+    return f"{name}, {coupling}"
 
 
 def markdown(summary: dict[str, Any], bag: Path) -> str:
@@ -34,7 +49,7 @@ def markdown(summary: dict[str, Any], bag: Path) -> str:
         ("spectral peaks (2nd half)", peaks),
     ]
     lines = [
-        f"# Run report: {summary['name']}",
+        f"# Run report: {run_heading(summary)}",
         "",
         f"Recorded bag: `{bag}`. Rebuilt from the plant topics (/lubrig/state, "
         "/lubrig/friction_coefficient, /lubrig/band_velocity) and the run configuration stored "
@@ -68,23 +83,35 @@ def markdown(summary: dict[str, Any], bag: Path) -> str:
         "",
         "![phase](phase.png)",
         "",
-        "## Friction coefficient with mass and band velocities",
+        "## Friction coefficient with relative, band and mass velocities",
+        "",
+        "μ is signed: it has the sign of v_rel = v_band − γ ẋ (negative while the interface slides "
+        "backwards, as in stick-slip). The band velocity is drawn dashed on top of v_rel.",
         "",
         "![friction and velocities](friction_velocity.png)",
+        "",
+        "## Operating point on the friction curve (μ against v_rel)",
+        "",
+        "(v_rel(t), μ(t)) of the run, coloured by time, over the friction law μ(v_rel) with its "
+        "zones shaded (1: rising, stable; 2: falling, unstable unless damped; 3: rising, viscous).",
+        "",
+        "![operating point on the friction curve](mu_velocity.png)",
         "",
     ]
     return "\n".join(lines)
 
 
-def write_report(bag: str | Path, out: str | Path) -> Path:
-    """Write figures, timeseries.csv, config.yaml, summary.json and report.md; return report.md.
+def write_report(bag: str | Path, out: str | Path, force: bool = False) -> Path:
+    """Write figures, timeseries.csv, config.yaml, summary.json, report.md and report.html.
 
-    The wavelet section is that of `lubrig analyze` with its defaults (whole record), computed on
-    the trajectory in memory; every file is written once.
+    Returns report.md. The wavelet section is that of `lubrig analyze` with its defaults (whole
+    record), computed on the trajectory in memory; every file is written once. An existing
+    non-empty `out` is refused unless force (then the report's own files are replaced).
     """
-    from ..figures.run import write_run_directory  # matplotlib only when drawing
+    from ..figures.run import RUN_FILES, write_run_directory  # matplotlib only when drawing
 
-    bag, out = Path(bag), check_output_dir(Path(out))
+    bag = Path(bag)
+    out = prepare_output_dir(Path(out), force, "--out", (*RUN_FILES, PAGE, HTML_PAGE))
     config, trajectory = trajectory_from_bag(bag)
     summary = summarize(trajectory, config)
     summary["source_bag"] = str(bag.resolve())
@@ -93,6 +120,7 @@ def write_report(bag: str | Path, out: str | Path) -> Path:
         whole_record(),
     )
     summary = write_run_directory(out, config, trajectory, summary, analysis)
-    page = out / "report.md"
+    page = out / PAGE
     page.write_text(markdown(summary, bag))
+    write_html_page(page, f"Run report: {run_heading(summary)}")
     return page
