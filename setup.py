@@ -5,7 +5,7 @@ from glob import glob
 from setuptools import find_packages, setup
 
 PACKAGE = "lubrig_ros"
-NODES = ["belt_drive", "plant", "analysis", "recorder", "replay"]
+NODES = ["belt_drive", "plant", "analysis", "recorder", "replay", "view"]
 
 setup(
     name=PACKAGE,
