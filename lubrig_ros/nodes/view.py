@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from lubrig_ros.app import display
+from lubrig_ros.app import display, layouts
 from lubrig_ros.app.cdr import leading_stamp_ns
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, validate_namespace
 from lubrig_ros.core.params import ParameterError
@@ -139,6 +139,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "10 Hz for analysis outputs, every message for latched topics and /diagnostics")
     p.add_argument("--default-rate", type=float, default=display.DEFAULT_DISPLAY_RATE, metavar="HZ",
                    help="display rate of topics without a --rate or a built-in one")
+    p.add_argument("--layout", choices=sorted(layouts.LAYOUTS),
+                   help="print the viewer layout for --namespace (as shipped in config/ for /lubrig) "
+                   "and exit")
 
 
 def build_parser(prog: str = "view") -> argparse.ArgumentParser:
@@ -329,6 +332,9 @@ class View:
 def run(args: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
     """Start node and server, spin until SIGINT/SIGTERM; returns the exit status."""
     rates = settings(args)
+    if args.layout:
+        print(layouts.LAYOUTS[args.layout](args.namespace), end="")
+        return 0
     import foxglove
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
