@@ -1,7 +1,7 @@
 """One rig run with launch_ros: belt_drive, plant and analysis in the rig's namespace.
 
 ros2 launch lubrig_ros rig.launch.py [case:=N | config_file:=FILE] [mode:=sim|realtime] [duration:=S]
-[namespace:=NS] [network:=false|true].
+[namespace:=NS] [network:=false|true] [view:=false|true].
 
 For ROS 2 installations with launch_ros (not installable from pip here: `lubrig rig` is the
 launcher that works everywhere). Like `lubrig rig`, it resolves the run once (case | config file |
@@ -46,15 +46,16 @@ ARGUMENTS = {
     "run_dir": "",
     "namespace": DEFAULT_NAMESPACE,
     "network": "false",
+    "view": "false",  # true: also the live view for Foxglove (lubrig view) on ws://127.0.0.1:8765
 }
 TYPES = {"case": int, "duration": float}  # the others are strings; network is a boolean
 
 
 def _typed(name: str, text: str) -> object:
     """A launch argument's value as its type, or a ValueError naming the argument and the value."""
-    if name == "network":
+    if name in ("network", "view"):
         if text.lower() not in ("true", "false"):
-            raise ValueError(f"network:={text!r} is not valid; expected true or false")
+            raise ValueError(f"{name}:={text!r} is not valid; expected true or false")
         return text.lower() == "true"
     kind = TYPES.get(name)
     if kind is None or text == "":
@@ -115,6 +116,9 @@ def _nodes(context, *_args, **_kwargs):
         )
         for node in nodes
     ]
+    if value["view"]:
+        nodes.append(Node(package="lubrig_ros", executable="view", name="view", namespace=value["namespace"],
+                          output="screen", additional_env=changed))  # namespace: launch's __ns
     return [*nodes, *stop]
 
 

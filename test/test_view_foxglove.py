@@ -11,6 +11,7 @@ wall-clock rates.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import re
@@ -79,7 +80,7 @@ def _stamp_ns(message: dict) -> int:
 def _assert_decimated(stamps: list[int], rate: float) -> None:
     """Consecutive stamps >= 1/rate apart, so count <= span * rate + 1."""
     period = round(1e9 / rate)
-    gaps = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
+    gaps = [b - a for a, b in itertools.pairwise(stamps)]
     assert all(g >= period for g in gaps), [g for g in gaps if g < period][:5]
     assert len(stamps) <= (stamps[-1] - stamps[0]) / period + 1
 
@@ -123,8 +124,9 @@ def test_state_blocks_shown_as_decimated_rig_states(procs, probe):
     The blocks come from a publisher in this test with known values, so every sample the client
     decodes is checked against the block it came from; rate 100 Hz over 1 kHz samples.
     """
-    from lubrig_interfaces.msg import RigStateBlock
     from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from lubrig_interfaces.msg import RigStateBlock
 
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     pub = probe.publisher(f"{NS}/state_block", RigStateBlock, qos)

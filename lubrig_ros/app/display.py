@@ -53,7 +53,9 @@ EXPANDED_BLOCKS: dict[str, tuple[str, str]] = {
 def check_rate(value: float, what: str) -> float:
     """`value` if it is a finite rate >= 0 Hz, else ParameterError naming it."""
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
-        raise ParameterError(f"{what}={value!r} is not valid; expected a finite number >= 0 Hz (0: every message)")
+        raise ParameterError(
+            f"{what}={value!r} is not valid; expected a finite number >= 0 Hz (0: every message)"
+        )
     return float(value)
 
 

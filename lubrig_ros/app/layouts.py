@@ -182,7 +182,7 @@ def plotjuggler_layout(namespace: str = DEFAULT_NAMESPACE) -> ET.Element:
     """
     state, stability = _t(namespace, "state"), _t(namespace, "stability")
     root = ET.Element("root")
-    tabs = ET.SubElement(root, "tabbed_widget", name="Main Window", parent="main_window")
+    tabs = ET.SubElement(root, "tabbed_widget", {"name": "Main Window", "parent": "main_window"})
     tab = ET.SubElement(tabs, "Tab", tab_name="rig", containers="1")
     container = ET.SubElement(tab, "Container")
     columns = _pj_splitter(container, "|", 2)

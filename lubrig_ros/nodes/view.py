@@ -61,12 +61,14 @@ class MessageSchemas:
 
     @staticmethod
     def prefixes() -> list[Path]:
+        """Install prefixes searched for .msg files."""
         import os
 
         paths = [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
         return [*paths, Path(sys.prefix)]
 
     def msg_file(self, msgtype: str) -> Path:
+        """The installed .msg file of `msgtype`; ValueError if there is none."""
         pkg, _kind, name = msgtype.split("/")
         for prefix in self.prefixes():
             path = prefix / "share" / pkg / "msg" / f"{name}.msg"
@@ -231,7 +233,8 @@ class View:
         else:
             channel, decimator = self._channel(topic, msgtype)
             resets = relative == "state" or topic == "/clock"
-            served = Served(topic, msgtype, channel, decimator, self.schemas.has_leading_stamp(msgtype), resets)
+            stamped = self.schemas.has_leading_stamp(msgtype)
+            served = Served(topic, msgtype, channel, decimator, stamped, resets)
             callback = self._raw_callback(served)
         self.subscriptions.append(
             self.node.create_subscription(cls, topic, callback, self._qos(topic), raw=True)
@@ -284,9 +287,8 @@ class View:
     def _block_callback(self, served: Served, block_cls: type, sample_cls: type) -> Any:
         from rclpy.serialization import deserialize_message, serialize_message
 
-        sample_fields = [
-            f for f in sample_cls.get_fields_and_field_types() if f not in ("header", "sample_index", "segment")
-        ]
+        per_block = ("header", "sample_index", "segment")
+        sample_fields = [f for f in sample_cls.get_fields_and_field_types() if f not in per_block]
 
         def callback(data: bytes) -> None:
             served.received += 1
@@ -361,6 +363,9 @@ def run(args: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
     rclpy.init(args=["--ros-args", *ros_args] if ros_args else [],
                signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("view", namespace=args.namespace)
+    if node.get_namespace() != args.namespace:  # remapped (-r __ns:=, a launch file's namespace)
+        args.namespace = node.get_namespace()
+        rates = settings(args)
     view = View(node, server, context, rates)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
