@@ -17,6 +17,7 @@ import math
 import re
 import shutil
 import subprocess
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -36,14 +37,15 @@ def _client_ready() -> None:
 def _serve(procs, *args: str) -> str:
     """Start the view on a free port; its ws:// URL."""
     view = procs.script("view", "--port", "0", *args)
-    view.wait_for_output("view: serving", 60)
+    view.wait_for_output("view: serving", 180)  # a guard: imports are slow under load
     match = re.search(r"ws://[0-9.]+:(\d+)", view.output())
     assert match, view.log()
     return match.group(0)
 
 
 def _listen(url: str, seconds: float, *topics: str) -> tuple[list[dict], list[dict]]:
-    """Run Foxglove's client for `seconds`: (advertised channels, decoded messages)."""
+    """Run Foxglove's client until it has TOPIC=COUNT messages of each topic (at most `seconds`,
+    a guard against a hang): (advertised channels, decoded messages)."""
     _client_ready()
     done = subprocess.run(
         ["node", str(CLIENT_DIR / "client.mjs"), url, str(seconds), *topics],
@@ -51,7 +53,9 @@ def _listen(url: str, seconds: float, *topics: str) -> tuple[list[dict], list[di
     )
     assert done.returncode == 0, done.stderr
     lines = [json.loads(line) for line in done.stdout.splitlines() if line.strip()]
-    assert lines and lines[-1] == {"done": True}, done.stdout[-2000:] + done.stderr
+    counts = Counter(x["topic"] for x in lines if "topic" in x)
+    channels = [x["advertise"]["topic"] for x in lines if "advertise" in x]
+    assert lines and lines[-1] == {"done": True, "complete": True}, (counts, channels, done.stderr)
     errors = [x for x in lines if "error" in x]
     assert not errors, errors
     advertised = [x["advertise"] for x in lines if "advertise" in x]
@@ -92,7 +96,7 @@ def test_realtime_rig_state_and_wavelet_image_in_foxglove_client(procs):
     procs.node("analysis", window=256, n_scales=16, image_width=64, publish_period=0.2)
     url = _serve(procs, "--rate", "state=20")
     state, image = f"{NS}/state", f"{NS}/wavelet_image"
-    advertised, messages = _listen(url, 8.0, state, image)
+    advertised, messages = _listen(url, 180.0, f"{state}=40", f"{image}=2")
     channels = {c["topic"]: c for c in advertised}
     # every channel: ROS 2 CDR with its ros2msg definition, as Foxglove decodes natively
     assert state in channels and image in channels, sorted(channels)
@@ -100,8 +104,7 @@ def test_realtime_rig_state_and_wavelet_image_in_foxglove_client(procs):
     assert channels[image]["schemaName"] == "sensor_msgs/msg/Image"
     states = [m for m in messages if m["topic"] == state]
     images = [m for m in messages if m["topic"] == image]
-    assert len(states) >= 10, procs.logs()
-    assert images, procs.logs()
+    assert len(states) >= 40 and len(images) >= 2
     assert not any(m["trailingBytes"] for m in messages), "schema and payload disagree"
     for m in states:
         values = _numbers(m["message"])
@@ -164,7 +167,7 @@ def test_state_blocks_shown_as_decimated_rig_states(procs, probe):
     worker = threading.Thread(target=publish, daemon=True)
     worker.start()
     try:
-        advertised, messages = _listen(url, 6.0, f"{NS}/state")
+        advertised, messages = _listen(url, 180.0, f"{NS}/state=30")
     finally:
         stop.set()
         worker.join(5)
@@ -172,7 +175,7 @@ def test_state_blocks_shown_as_decimated_rig_states(procs, probe):
     assert channels[f"{NS}/state"]["schemaName"] == "lubrig_interfaces/msg/RigState"
     assert f"{NS}/state_block" not in channels  # shown as its samples only
     states = [m["message"] for m in messages if m["topic"] == f"{NS}/state"]
-    assert len(states) >= 20, procs.logs()
+    assert len(states) >= 30
     for s in states:
         i = s["sample_index"]
         assert _stamp_ns(s) == i * 1_000_000

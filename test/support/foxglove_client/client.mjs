@@ -3,10 +3,11 @@
 // @foxglove/rosmsg2-serialization (CDR decoder), the pieces the Foxglove app uses for a live
 // connection. Nothing in it knows the rig's messages: it decodes whatever the server advertises.
 //
-// node client.mjs URL SECONDS TOPIC [TOPIC ...]
+// node client.mjs URL SECONDS TOPIC[=COUNT] [TOPIC[=COUNT] ...]
 // Prints one JSON line per advertised channel ({"advertise": ...}) and per message received on a
 // subscribed topic ({"topic", "schemaName", "logTime", "trailingBytes", "message"}), then
-// {"done": true} after SECONDS s. Byte arrays are summarized by their length.
+// {"done": true, "complete": bool} once every TOPIC has COUNT messages (default 1), or after
+// SECONDS s at most (complete false). Byte arrays are summarized by their length.
 import wsProtocol from "@foxglove/ws-protocol";
 import rosmsg from "@foxglove/rosmsg";
 import rosmsg2 from "@foxglove/rosmsg2-serialization";
@@ -17,7 +18,8 @@ const { parse } = rosmsg;
 const { MessageReader } = rosmsg2;
 
 const [url, seconds, ...topics] = process.argv.slice(2);
-const wanted = new Set(topics);
+const wanted = new Map(topics.map((t) => [t.split("=")[0], Number(t.split("=")[1] || 1)]));
+const counts = new Map();
 // foxglove-sdk servers speak "foxglove.sdk.v1", the same protocol as "foxglove.websocket.v1" under a
 // new name (the client library leaves the choice to the WebSocket it is given); offer both.
 const client = new FoxgloveClient({
@@ -66,9 +68,13 @@ client.on("message", ({ subscriptionId, timestamp, data }) => {
   }
   print({ topic: entry.channel.topic, schemaName: entry.channel.schemaName, logTime: String(timestamp),
     trailingBytes: entry.reader.lastReadHadTrailingBytes(), message: plain(message) });
+  counts.set(entry.channel.topic, (counts.get(entry.channel.topic) || 0) + 1);
+  if ([...wanted].every(([topic, count]) => (counts.get(topic) || 0) >= count)) finish(true);
 });
-setTimeout(() => {
-  print({ done: true });
+
+function finish(complete) {
+  print({ done: true, complete });
   client.close();
   process.exit(0);
-}, Number(seconds) * 1000);
+}
+setTimeout(() => finish(false), Number(seconds) * 1000);
