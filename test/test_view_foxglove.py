@@ -185,3 +185,36 @@ def test_state_blocks_shown_as_decimated_rig_states(procs, probe):
         assert s["belt_travel"] == pytest.approx(1e-10 * i, rel=1e-12)
         assert s["segment"] == 0 and s["friction_coefficient"] == 0.1
     _assert_decimated([_stamp_ns(s) for s in states], 100.0)
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path):
+    """`lubrig rig --view PORT`: the launcher starts the view with the nodes; the client gets states."""
+    port = _free_port()
+    rig = procs.script(
+        "lubrig", "rig", "--case", "1", "--mode", "realtime", "--duration", "40", "--bag",
+        str(tmp_path / "run"), "--no-recorder", "--no-report", "--view", str(port),
+    )
+    rig.wait_for_output("live view on", 180)
+    view_log = tmp_path / "run" / "logs" / "view.log"
+    deadline = 180.0
+    import time
+
+    end = time.monotonic() + deadline
+    while "view: serving" not in (view_log.read_text() if view_log.exists() else ""):
+        assert time.monotonic() < end and rig.running(), rig.log()
+        time.sleep(0.2)
+    _channels, messages = _listen(f"ws://127.0.0.1:{port}", 120.0, f"{NS}/state=20")
+    states = [m["message"] for m in messages if m["topic"] == f"{NS}/state"]
+    assert len(states) >= 20
+    assert all(math.isfinite(v) for s in states for v in _numbers(s))
+    _assert_decimated([_stamp_ns(s) for s in states], 50.0)  # the view's default for state
+    assert rig.wait(180) == 0, rig.log()
+    assert "view: stopped" in view_log.read_text()

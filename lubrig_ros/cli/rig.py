@@ -230,13 +230,13 @@ def run(args: argparse.Namespace) -> int:
                     stderr=subprocess.STDOUT,
                 )
             _wait_recorder(procs["recorder"], logs / "recorder.log")
-        if args.view:  # live view for Foxglove (lubrig view), up before the nodes publish
+        if args.view is not None:  # live view for Foxglove (lubrig view), up before the nodes publish
             with open(logs / "view.log", "w") as log:
                 procs["view"] = subprocess.Popen(
-                    [_executable("view"), "--namespace", namespace], env=env, stdout=log,
-                    stderr=subprocess.STDOUT,
+                    [_executable("view"), "--namespace", namespace, "--port", str(args.view)], env=env,
+                    stdout=log, stderr=subprocess.STDOUT,
                 )
-            print(f"lubrig rig: live view on ws://127.0.0.1:8765 (Foxglove; log {logs / 'view.log'})")
+            print(f"lubrig rig: live view on ws://127.0.0.1:{args.view} (Foxglove; log {logs / 'view.log'})")
         for name in NODES:
             with open(logs / f"{name}.log", "w") as log:
                 procs[name] = subprocess.Popen(
@@ -328,6 +328,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--no-recorder", action="store_true", help="do not start the recorder")
     parser.add_argument("--no-report", action="store_true", help="do not write DIR/report")
-    parser.add_argument("--view", action="store_true",
-                        help="also serve the run to Foxglove on ws://127.0.0.1:8765 (lubrig view)")
+    parser.add_argument("--view", nargs="?", type=int, const=8765, metavar="PORT",
+                        help="also serve the run to Foxglove on ws://127.0.0.1:PORT (default 8765; "
+                        "lubrig view)")
     parser.set_defaults(func=run)
