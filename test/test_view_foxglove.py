@@ -16,6 +16,7 @@ import json
 import math
 import re
 import shutil
+import signal
 import subprocess
 from collections import Counter
 from pathlib import Path
@@ -196,10 +197,14 @@ def _free_port() -> int:
 
 
 def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path):
-    """`lubrig rig --view PORT`: the launcher starts the view with the nodes; the client gets states."""
+    """`lubrig rig --view PORT`: the launcher starts the view with the nodes; the client gets states.
+
+    The run is long (900 s) so that slow start-ups under load cannot end it first; the test stops it
+    with Ctrl-C once the client has its messages.
+    """
     port = _free_port()
     rig = procs.script(
-        "lubrig", "rig", "--case", "1", "--mode", "realtime", "--duration", "40", "--bag",
+        "lubrig", "rig", "--case", "1", "--mode", "realtime", "--duration", "900", "--bag",
         str(tmp_path / "run"), "--no-recorder", "--no-report", "--view", str(port),
     )
     rig.wait_for_output("live view on", 180)
@@ -216,5 +221,7 @@ def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path):
     assert len(states) >= 20
     assert all(math.isfinite(v) for s in states for v in _numbers(s))
     _assert_decimated([_stamp_ns(s) for s in states], 50.0)  # the view's default for state
-    assert rig.wait(180) == 0, rig.log()
+    # Ctrl-C: the launcher stops the nodes and the view, and exits 0
+    assert rig.stop(signal.SIGINT, 120) == 0, rig.log()
+    assert "interrupted, stopping the nodes" in rig.errors()
     assert "view: stopped" in view_log.read_text()
