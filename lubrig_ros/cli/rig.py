@@ -185,6 +185,18 @@ def _wait_recorder(proc: subprocess.Popen, log: Path, limit: float = RECORDER_RE
     raise CommandError(f"recorder not ready after {limit:g} s; see {log}")
 
 
+def _wait_view(proc: subprocess.Popen, log: Path, limit: float = RECORDER_READY_S) -> None:
+    """Wait until the live view serves (prints "view: serving"), so a sim run is seen from its start."""
+    end = time.monotonic() + limit
+    while "view: serving" not in log.read_text(errors="replace"):
+        if proc.poll() is not None:
+            lines = log.read_text(errors="replace").strip().splitlines()
+            raise CommandError(f"view exited with status {proc.returncode}: {lines[-1] if lines else ''}")
+        if time.monotonic() > end:
+            raise CommandError(f"view not serving after {limit:g} s; see {log}")
+        time.sleep(0.05)
+
+
 def run(args: argparse.Namespace) -> int:
     """Start, wait, stop, report."""
     config = select_config(args)
@@ -236,6 +248,7 @@ def run(args: argparse.Namespace) -> int:
                     [_executable("view"), "--namespace", namespace, "--port", str(args.view)], env=env,
                     stdout=log, stderr=subprocess.STDOUT,
                 )
+            _wait_view(procs["view"], logs / "view.log")
             print(f"lubrig rig: live view on ws://127.0.0.1:{args.view} (Foxglove; log {logs / 'view.log'})")
         for name in NODES:
             with open(logs / f"{name}.log", "w") as log:
