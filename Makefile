@@ -36,7 +36,18 @@ $(IFACE_STAMP): $(STAMP) $(IFACE_FILES)
 	$(PY) -c "import lubrig_interfaces.msg"
 	touch $@
 
-setup: $(STAMP) $(IFACE_STAMP)
+# The Foxglove WebSocket client of test/test_view_foxglove.py: Foxglove's npm packages, pinned in
+# test/support/foxglove_client/package-lock.json, installed into its node_modules (gitignored).
+# Skipped with a note where npm is missing (that test then fails, saying so).
+CLIENT_DIR := test/support/foxglove_client
+CLIENT_STAMP := $(CLIENT_DIR)/node_modules/.installed
+
+$(CLIENT_STAMP): $(CLIENT_DIR)/package.json $(CLIENT_DIR)/package-lock.json
+	@if command -v npm >/dev/null 2>&1; then \
+		cd $(CLIENT_DIR) && npm ci --no-audit --no-fund --loglevel=error && touch node_modules/.installed; \
+	else echo "npm not found: the Foxglove client of test/test_view_foxglove.py is not installed"; fi
+
+setup: $(STAMP) $(IFACE_STAMP) $(CLIENT_STAMP)
 
 # The main job: the node suite (belt_drive, plant, analysis, recorder) on study case 1 in simulated
 # time, recorded to runs/latest/bag, then the report; the last line printed is the report's path.

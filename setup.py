@@ -5,7 +5,7 @@ from glob import glob
 from setuptools import find_packages, setup
 
 PACKAGE = "lubrig_ros"
-NODES = ["belt_drive", "plant", "analysis", "recorder", "replay"]
+NODES = ["belt_drive", "plant", "analysis", "recorder", "replay", "view"]
 
 setup(
     name=PACKAGE,
@@ -18,6 +18,8 @@ setup(
         (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.xml")),
         (f"share/{PACKAGE}/config/cases", glob("config/cases/*.yaml")),
         (f"share/{PACKAGE}/config/sweeps", glob("config/sweeps/*.yaml")),
+        (f"share/{PACKAGE}/config/foxglove", glob("config/foxglove/*.json")),
+        (f"share/{PACKAGE}/config/plotjuggler", glob("config/plotjuggler/*.xml")),
         (f"share/{PACKAGE}/launch", glob("launch/*.py")),
     ],
     install_requires=["setuptools"],

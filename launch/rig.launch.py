@@ -1,7 +1,7 @@
 """One rig run with launch_ros: belt_drive, plant and analysis in the rig's namespace.
 
 ros2 launch lubrig_ros rig.launch.py [case:=N | config_file:=FILE] [mode:=sim|realtime] [duration:=S]
-[namespace:=NS] [network:=false|true] [publish_clock:=true|false].
+[namespace:=NS] [network:=false|true] [publish_clock:=true|false] [view:=false|true].
 
 For ROS 2 installations with launch_ros (not installable from pip here: `lubrig rig` is the
 launcher that works everywhere). Like `lubrig rig`, it resolves the run once (case | config file |
@@ -47,9 +47,10 @@ ARGUMENTS = {
     "namespace": DEFAULT_NAMESPACE,
     "network": "false",
     "publish_clock": "true",
+    "view": "false",  # true: also the live view for Foxglove (lubrig view) on ws://127.0.0.1:8765
 }
 TYPES = {"case": int, "duration": float}  # the others are strings, but for the booleans
-BOOLEANS = ("network", "publish_clock")
+BOOLEANS = ("network", "publish_clock", "view")
 
 
 def _typed(name: str, text: str) -> object:
@@ -122,6 +123,9 @@ def _nodes(context, *_args, **_kwargs):
         )
         for node in nodes
     ]
+    if value["view"]:
+        nodes.append(Node(package="lubrig_ros", executable="view", name="view", namespace=value["namespace"],
+                          output="screen", additional_env=changed))  # namespace: launch's __ns
     return [*nodes, *stop]
 
 

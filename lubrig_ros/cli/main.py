@@ -16,6 +16,7 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
     "rig",
     "bag",
     "replay",
+    "view",
     "report",
     "paper",
     "sweep",

@@ -215,6 +215,18 @@ def _wait_recorder(proc: subprocess.Popen, log: Path, limit: float = RECORDER_RE
     raise CommandError(f"recorder not ready after {limit:g} s; see {log}")
 
 
+def _wait_view(proc: subprocess.Popen, log: Path, limit: float = RECORDER_READY_S) -> None:
+    """Wait until the live view serves (prints "view: serving"), so a sim run is seen from its start."""
+    end = time.monotonic() + limit
+    while "view: serving" not in log.read_text(errors="replace"):
+        if proc.poll() is not None:
+            lines = log.read_text(errors="replace").strip().splitlines()
+            raise CommandError(f"view exited with status {proc.returncode}: {lines[-1] if lines else ''}")
+        if time.monotonic() > end:
+            raise CommandError(f"view not serving after {limit:g} s; see {log}")
+        time.sleep(0.05)
+
+
 def run(args: argparse.Namespace) -> int:
     """Start, wait, stop, report."""
     config = select_config(args)
@@ -269,6 +281,14 @@ def run(args: argparse.Namespace) -> int:
                     stderr=subprocess.STDOUT,
                 )
             _wait_recorder(procs["recorder"], logs / "recorder.log")
+        if args.view is not None:  # live view for Foxglove (lubrig view), up before the nodes publish
+            with open(logs / "view.log", "w") as log:
+                procs["view"] = subprocess.Popen(
+                    [_executable("view"), "--namespace", namespace, "--port", str(args.view)], env=env,
+                    stdout=log, stderr=subprocess.STDOUT,
+                )
+            _wait_view(procs["view"], logs / "view.log")
+            print(f"lubrig rig: live view on ws://127.0.0.1:{args.view} (Foxglove; log {logs / 'view.log'})")
         for name in NODES:
             with open(logs / f"{name}.log", "w") as log:
                 procs[name] = subprocess.Popen(
@@ -376,4 +396,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "second rig on the same domain)",
     )
     parser.add_argument("--no-report", action="store_true", help="do not write DIR/report")
+    parser.add_argument("--view", nargs="?", type=int, const=8765, metavar="PORT",
+                        help="also serve the run to Foxglove on ws://127.0.0.1:PORT (default 8765; "
+                        "lubrig view)")
     parser.set_defaults(func=run)

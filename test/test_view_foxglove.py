@@ -1,0 +1,227 @@
+"""The live view over the Foxglove WebSocket protocol, read by a client nobody here wrote.
+
+The view (`view` node, foxglove-sdk server) runs beside real rig nodes over real DDS; the client is
+made of Foxglove's own npm packages (@foxglove/ws-protocol, @foxglove/rosmsg,
+@foxglove/rosmsg2-serialization; test/support/foxglove_client, installed by `make setup`). It
+subscribes to the state and wavelet image channels and decodes what it gets with the schemas the
+server advertised. Assertions are about content and decimation (message counts bounded by the
+display rate over the rig time covered, stamps at least one display period apart), never about
+wall-clock rates.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import re
+import shutil
+import signal
+import subprocess
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+NS = "/lubrig"
+CLIENT_DIR = Path(__file__).parent / "support" / "foxglove_client"
+pytestmark = pytest.mark.ros
+
+
+def _client_ready() -> None:
+    if shutil.which("node") is None:
+        pytest.fail("node (Node.js) is not installed: the Foxglove client of this test runs on it")
+    if not (CLIENT_DIR / "node_modules" / "@foxglove" / "ws-protocol").is_dir():
+        pytest.fail(f"the Foxglove client is not installed in {CLIENT_DIR}: run `make setup`")
+
+
+def _serve(procs, *args: str) -> str:
+    """Start the view on a free port; its ws:// URL."""
+    view = procs.script("view", "--port", "0", *args)
+    view.wait_for_output("view: serving", 180)  # a guard: imports are slow under load
+    match = re.search(r"ws://[0-9.]+:(\d+)", view.output())
+    assert match, view.log()
+    return match.group(0)
+
+
+def _listen(url: str, seconds: float, *topics: str) -> tuple[list[dict], list[dict]]:
+    """Run Foxglove's client until it has TOPIC=COUNT messages of each topic (at most `seconds`,
+    a guard against a hang): (advertised channels, decoded messages)."""
+    _client_ready()
+    done = subprocess.run(
+        ["node", str(CLIENT_DIR / "client.mjs"), url, str(seconds), *topics],
+        capture_output=True, text=True, timeout=seconds + 60,
+    )
+    assert done.returncode == 0, done.stderr
+    lines = [json.loads(line) for line in done.stdout.splitlines() if line.strip()]
+    counts = Counter(x["topic"] for x in lines if "topic" in x)
+    channels = [x["advertise"]["topic"] for x in lines if "advertise" in x]
+    assert lines and lines[-1] == {"done": True, "complete": True}, (counts, channels, done.stderr)
+    errors = [x for x in lines if "error" in x]
+    assert not errors, errors
+    advertised = [x["advertise"] for x in lines if "advertise" in x]
+    messages = [x for x in lines if "topic" in x]
+    return advertised, messages
+
+
+def _numbers(value) -> list[float]:
+    """Every number in a decoded message (nested)."""
+    if isinstance(value, bool):
+        return []
+    if isinstance(value, int | float):
+        return [float(value)]
+    if isinstance(value, list):
+        return [x for v in value for x in _numbers(v)]
+    if isinstance(value, dict):
+        return [x for v in value.values() for x in _numbers(v)]
+    return []
+
+
+def _stamp_ns(message: dict) -> int:
+    stamp = message["header"]["stamp"]
+    return int(stamp["sec"]) * 1_000_000_000 + int(stamp["nanosec"])
+
+
+def _assert_decimated(stamps: list[int], rate: float) -> None:
+    """Consecutive stamps >= 1/rate apart, so count <= span * rate + 1."""
+    period = round(1e9 / rate)
+    gaps = [b - a for a, b in itertools.pairwise(stamps)]
+    assert all(g >= period for g in gaps), [g for g in gaps if g < period][:5]
+    assert len(stamps) <= (stamps[-1] - stamps[0]) / period + 1
+
+
+def test_realtime_rig_state_and_wavelet_image_in_foxglove_client(procs):
+    """Realtime rig (1 kHz states) with the view at 20 Hz for state: decoded, finite, decimated."""
+    procs.node("plant", mode="realtime")
+    procs.node("belt_drive", mode="realtime")
+    procs.node("analysis", window=256, n_scales=16, image_width=64, publish_period=0.2)
+    url = _serve(procs, "--rate", "state=20")
+    state, image = f"{NS}/state", f"{NS}/wavelet_image"
+    advertised, messages = _listen(url, 180.0, f"{state}=40", f"{image}=2")
+    channels = {c["topic"]: c for c in advertised}
+    # every channel: ROS 2 CDR with its ros2msg definition, as Foxglove decodes natively
+    assert state in channels and image in channels, sorted(channels)
+    assert {(c["encoding"], c["schemaEncoding"]) for c in advertised} == {("cdr", "ros2msg")}
+    assert channels[image]["schemaName"] == "sensor_msgs/msg/Image"
+    states = [m for m in messages if m["topic"] == state]
+    images = [m for m in messages if m["topic"] == image]
+    assert len(states) >= 40 and len(images) >= 2
+    assert not any(m["trailingBytes"] for m in messages), "schema and payload disagree"
+    for m in states:
+        values = _numbers(m["message"])
+        assert values and all(math.isfinite(v) for v in values), m
+    stamps = [_stamp_ns(m["message"]) for m in states]
+    _assert_decimated(stamps, 20.0)
+    # the plant publishes one state per 1 ms of rig time: the view showed a small share of them
+    assert len(states) <= (stamps[-1] - stamps[0]) / 1e6 / 40
+    # log time is the rig time of the message
+    assert all(int(m["logTime"]) == s for m, s in zip(states, stamps, strict=True))
+    for m in images:
+        img = m["message"]
+        assert img["encoding"] == "rgb8" and img["width"] == 64 and img["height"] == 16
+        assert img["data"]["bytes"] == img["height"] * img["step"] > 0
+
+
+def test_state_blocks_shown_as_decimated_rig_states(procs, probe):
+    """RigStateBlock on <ns>/state_block (sim mode's plant output) arrives as RigState samples.
+
+    The blocks come from a publisher in this test with known values, so every sample the client
+    decodes is checked against the block it came from; rate 100 Hz over 1 kHz samples.
+    """
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from lubrig_interfaces.msg import RigStateBlock
+
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    pub = probe.publisher(f"{NS}/state_block", RigStateBlock, qos)
+    url = _serve(procs, "--rate", "state=100")
+
+    def block(k: int, n: int = 100) -> RigStateBlock:
+        msg = RigStateBlock()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * n * 1_000_000, 1_000_000_000)
+        msg.sample_period = 1e-3
+        msg.first_sample_index = k * n
+        msg.segment = 0
+        index = [k * n + i for i in range(n)]
+        msg.displacement = [1e-9 * i for i in index]
+        msg.velocity = [2e-9 * i for i in index]
+        msg.friction_coefficient = [0.1] * n
+        msg.friction_force = [1.0] * n
+        msg.band_velocity = [1e-7] * n
+        msg.relative_velocity = [1e-7 - 2e-9 * i for i in index]
+        msg.belt_travel = [1e-10 * i for i in index]
+        return msg
+
+    import threading
+    import time
+
+    stop = threading.Event()
+
+    def publish() -> None:
+        k = 0
+        while not stop.is_set():
+            if pub.get_subscription_count() > 0:
+                pub.publish(block(k))
+                k += 1
+            time.sleep(0.02)  # 0.1 s of rig time per 20 ms: five times faster than real time
+
+    worker = threading.Thread(target=publish, daemon=True)
+    worker.start()
+    try:
+        advertised, messages = _listen(url, 180.0, f"{NS}/state=30")
+    finally:
+        stop.set()
+        worker.join(5)
+    channels = {c["topic"]: c for c in advertised}
+    assert channels[f"{NS}/state"]["schemaName"] == "lubrig_interfaces/msg/RigState"
+    assert f"{NS}/state_block" not in channels  # shown as its samples only
+    states = [m["message"] for m in messages if m["topic"] == f"{NS}/state"]
+    assert len(states) >= 30
+    for s in states:
+        i = s["sample_index"]
+        assert _stamp_ns(s) == i * 1_000_000
+        assert s["displacement"] == pytest.approx(1e-9 * i, rel=1e-12)
+        assert s["velocity"] == pytest.approx(2e-9 * i, rel=1e-12)
+        assert s["relative_velocity"] == pytest.approx(1e-7 - 2e-9 * i, rel=1e-9)
+        assert s["belt_travel"] == pytest.approx(1e-10 * i, rel=1e-12)
+        assert s["segment"] == 0 and s["friction_coefficient"] == 0.1
+    _assert_decimated([_stamp_ns(s) for s in states], 100.0)
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path):
+    """`lubrig rig --view PORT`: the launcher starts the view with the nodes; the client gets states.
+
+    The run is long (900 s) so that slow start-ups under load cannot end it first; the test stops it
+    with Ctrl-C once the client has its messages.
+    """
+    port = _free_port()
+    rig = procs.script(
+        "lubrig", "rig", "--case", "1", "--mode", "realtime", "--duration", "900", "--bag",
+        str(tmp_path / "run"), "--no-recorder", "--no-report", "--view", str(port),
+    )
+    rig.wait_for_output("live view on", 180)
+    view_log = tmp_path / "run" / "logs" / "view.log"
+    deadline = 180.0
+    import time
+
+    end = time.monotonic() + deadline
+    while "view: serving" not in (view_log.read_text() if view_log.exists() else ""):
+        assert time.monotonic() < end and rig.running(), rig.log()
+        time.sleep(0.2)
+    _channels, messages = _listen(f"ws://127.0.0.1:{port}", 120.0, f"{NS}/state=20")
+    states = [m["message"] for m in messages if m["topic"] == f"{NS}/state"]
+    assert len(states) >= 20
+    assert all(math.isfinite(v) for s in states for v in _numbers(s))
+    _assert_decimated([_stamp_ns(s) for s in states], 50.0)  # the view's default for state
+    # Ctrl-C: the launcher stops the nodes and the view, and exits 0
+    assert rig.stop(signal.SIGINT, 120) == 0, rig.log()
+    assert "interrupted, stopping the nodes" in rig.errors()
+    assert "view: stopped" in view_log.read_text()
