@@ -25,7 +25,7 @@ from functools import cache
 from typing import Any, Literal
 
 from ..core.friction_laws import DEFAULT_LAW, law_named
-from ..core.params import CONVENTIONS, ParameterError
+from ..core.params import CONVENTIONS, RIG_RANGES, ParameterError
 
 DEFAULT_NAMESPACE = "/lubrig"
 #: Longest namespace ROS 2 accepts (rmw: RMW_NAMESPACE_MAX_NAME_LENGTH; measured with rclpy: 245).
@@ -502,11 +502,12 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
            "applied at the next reset", low=0.0, read_only=False, from_config="rig.velocity_coupling"),
         *(
             _p(f"rig.{n}", "double", None, f"rig {n}; applied at the next reset", unit=RIG_UNITS[n],
-               read_only=False, from_config=f"rig.{n}")
+               read_only=False, from_config=f"rig.{n}", low=RIG_RANGES[n][0], high=RIG_RANGES[n][1])
             for n in RIG_FIELDS
         ),
         _p("rig.normal_force", "double", None, "normal force N; applied at the next reset", unit="N",
-           read_only=False, from_config="rig.friction.normal_force"),
+           read_only=False, from_config="rig.friction.normal_force",
+           low=RIG_RANGES["normal_force"][0], high=RIG_RANGES["normal_force"][1]),
         FRICTION_LAW,
         *friction_parameters(law),
         _p("band_velocity_limit", "double", BAND_VELOCITY_LIMIT,
