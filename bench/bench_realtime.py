@@ -37,13 +37,13 @@ def _status(array: DiagnosticArray, name: str) -> dict[str, str]:
     return {}
 
 
-def bench_realtime(duration: float, tmp: Path) -> dict[str, str]:
+def bench_realtime(duration: float, tmp: Path, priority: int = 0) -> dict[str, str]:
     lease = DomainLease()
     probe, procs = Probe(lease.domain), Processes(ros_env(lease.domain), tmp / "realtime")
     try:
         probe.subscribe("/diagnostics", DiagnosticArray)
-        procs.node("plant", mode="realtime")
-        procs.node("belt_drive", mode="realtime")
+        procs.node("plant", mode="realtime", realtime_priority=priority)
+        procs.node("belt_drive", mode="realtime", realtime_priority=priority)
         procs.node("analysis")
         timing = f"{common.DEFAULT_NAMESPACE}/state"
         probe.subscribe(timing, RigState)
@@ -52,7 +52,7 @@ def bench_realtime(duration: float, tmp: Path) -> dict[str, str]:
 
         def plant_timing() -> dict[str, str]:
             for array in reversed(probe.messages["/diagnostics"]):
-                values = _status(array, "lubrig/plant: timing")
+                values = _status(array, "/lubrig/plant: timing")
                 if values:
                     return values
             return {}
@@ -128,10 +128,12 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=60.0, help="realtime run, s (default 60)")
     parser.add_argument("--sim-duration", type=float, default=20.0, help="sim run, rig s (default 20)")
     parser.add_argument("--case", type=int, default=1)
+    parser.add_argument("--priority", type=int, default=0,
+                        help="realtime_priority of plant and belt_drive (default 0, the nodes' default)")
     args = parser.parse_args()
     os.environ["RCUTILS_LOGGING_BUFFERED_STREAM"] = "0"
     with tempfile.TemporaryDirectory() as tmp:
-        values = bench_realtime(args.duration, Path(tmp))
+        values = bench_realtime(args.duration, Path(tmp), args.priority)
         print(f"realtime 1 kHz, {args.duration:g} s wall, plant + belt_drive + analysis:")
         samples = int(values.get("samples", "0"))
         misses = int(values.get("deadline_misses", "0"))

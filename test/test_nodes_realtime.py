@@ -34,12 +34,12 @@ def _rig_time(msg: RigState) -> float:
 
 
 def _timing_reports(probe) -> list[dict[str, str]]:
-    """Every `lubrig/plant: timing` status received so far, oldest first."""
+    """Every `/lubrig/plant: timing` status received so far, oldest first."""
     return [
         {kv.key: kv.value for kv in status.values}
         for array in list(probe.messages["/diagnostics"])
         for status in array.status
-        if status.name == "lubrig/plant: timing"
+        if status.name == "/lubrig/plant: timing"
     ]
 
 

@@ -74,7 +74,7 @@ def test_rig_in_loop_bad_input_and_staleness(procs, probe):
     diag = probe.messages["/diagnostics"]
 
     def band() -> dict[str, str]:
-        return _values(diag[-1], "lubrig/plant: band input") if diag else {}
+        return _values(diag[-1], "/lubrig/plant: band input") if diag else {}
 
     feeder = threading.Thread(target=feed, daemon=True)
     feeder.start()
@@ -108,7 +108,7 @@ def test_rig_in_loop_bad_input_and_staleness(procs, probe):
         feeder.join(timeout=5)
     assert all(math.isfinite(m.data) for m in probe.messages[x])
     assert plant.running(), plant.log()  # still alive
-    timing = _values(diag[-1], "lubrig/plant: timing")
+    timing = _values(diag[-1], "/lubrig/plant: timing")
     assert timing["integration_errors"] == "0"
     codes = procs.stop_all()
     assert codes["plant"] == 0, plant.log()

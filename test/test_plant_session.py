@@ -109,7 +109,7 @@ def test_sim_values_after_the_end_are_ignored_and_counted(case1):
     assert len(rec.samples) == config.samples + 1
     assert session.ignored_after_end == 5
     assert rec.complete == [True]  # completion is reported once
-    band = {s.name: s for s in session.diagnostics()}["lubrig/plant: band input"].as_dict()
+    band = {s.name: s for s in session.diagnostics()}["band input"].as_dict()
     assert band["ignored_after_run_end"] == "5"
 
 
@@ -156,11 +156,11 @@ def test_bad_band_values_are_rejected_in_sim(case1, bad):
     assert session.sample_index == 10 and len(rec.samples) == 11  # not integrated
     _feed(session, config, 10, config.samples - 10)  # the run goes on undisturbed
     assert session.complete and session.rejected == 1
-    status = {s.name: s for s in session.diagnostics()}["lubrig/plant: band input"]
+    status = {s.name: s for s in session.diagnostics()}["band input"]
     assert status.level == "warn" and "1 bad band value(s) rejected" in status.message
     values = status.as_dict()
     assert values["rejected"] == "1" and values["last_rejected_value"] == repr(bad)
-    again = {s.name: s for s in session.diagnostics()}["lubrig/plant: band input"]
+    again = {s.name: s for s in session.diagnostics()}["band input"]
     assert again.level == "ok" and again.as_dict()["rejected_since_last_report"] == "0"
 
 
@@ -196,7 +196,7 @@ def test_staleness_follows_the_input_age():
     session = rec.session(default_config(), mode="rig_in_loop", clock=clock, stale_timeout=0.05)
 
     def band() -> dict[str, str]:
-        return {s.name: s for s in session.diagnostics()}["lubrig/plant: band input"].as_dict()
+        return {s.name: s for s in session.diagnostics()}["band input"].as_dict()
 
     assert session.stale() and band()["input_age_s"] == "none"  # no input yet
     session.band_input(1e-7)
@@ -234,7 +234,7 @@ def test_timing_statistics_latency_and_deadline_misses():
     assert session.ticks == 3 and session.misses == 1 and session.latencies.count == 1
     p50, _ = session.latencies.percentiles()
     assert 0.0005 <= p50 <= 0.0005 + 2e-5
-    timing = {s.name: s for s in session.diagnostics()}["lubrig/plant: timing"]
+    timing = {s.name: s for s in session.diagnostics()}["timing"]
     values = timing.as_dict()
     assert values["deadline_misses"] == "1" and values["samples"] == "3"
     assert float(values["max_lateness_s"]) == pytest.approx(2 * period)
@@ -298,7 +298,7 @@ def test_a_failed_sample_restarts_at_the_next_sample_time(case1, how):
     text = next(t for level, t in rec.logs if level == "error")
     assert "integration failed at t = 0.051" in text and "restarted at equilibrium" in text
     assert all(math.isfinite(s.displacement) for s in rec.samples)
-    timing = {s.name: s for s in session.diagnostics()}["lubrig/plant: timing"].as_dict()
+    timing = {s.name: s for s in session.diagnostics()}["timing"].as_dict()
     assert timing["integration_errors"] == "1"
 
 
@@ -343,7 +343,7 @@ def test_diagnostics_are_plain_data(case1):
     config, _ = case1
     session = Recorder().session(config)
     statuses = session.diagnostics()
-    assert [s.name for s in statuses] == ["lubrig/plant: timing", "lubrig/plant: band input"]
+    assert [s.name for s in statuses] == ["timing", "band input"]
     assert all(isinstance(k, str) and isinstance(v, str) for s in statuses for k, v in s.values)
     assert statuses[0].message == "running" and statuses[1].as_dict()["valid_range_m_s"] == (
         "finite, |v| <= 0.01"

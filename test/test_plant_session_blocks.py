@@ -123,7 +123,7 @@ def test_reset_starts_a_new_segment_and_drops_stale_blocks(case1):
     assert sink.blocks[0].time[0] == 0.0 and sink.blocks[0].belt_travel[0] == 0.0
     assert np.array_equal(sink.column("displacement"), ref.displacement)  # the same run again
     assert sink.complete == [False, True]
-    status = {s.name: s for s in session.diagnostics()}["lubrig/plant: band input"].as_dict()
+    status = {s.name: s for s in session.diagnostics()}["band input"].as_dict()
     assert status["segment"] == "1" and status["stale_blocks"] == "1"
 
 

@@ -79,7 +79,7 @@ def flag_statuses(flags: StabilityFlags) -> list[Status]:
     }
     return [
         Status(
-            name=f"lubrig/analysis: {group}",
+            name=group,  # the node prefixes its fully qualified name
             hardware_id=HARDWARE_ID,
             level="warn" if warn[group] else "ok",
             message=message[group],

@@ -229,8 +229,9 @@ TOPICS: tuple[Topic, ...] = (
        "1 / publish_period (once the window is full)", "1", "envelope growth flag"),
     _t("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", ANALYSIS_QOS, "plant, analysis",
        "plant 1 / diagnostics_period (1 Hz), analysis 1 / publish_period", "key/values",
-       "plant: `lubrig/plant: timing`, `lubrig/plant: band input`; analysis: `lubrig/analysis: "
-       "linear`, `oscillation`, `stick`, `resonance` (values = core.flags fields)"),
+       "statuses named `<node FQN>: <group>`: plant `/lubrig/plant: timing`, `… band input`; "
+       "analysis `/lubrig/analysis: linear`, `… oscillation`, `… stick`, `… resonance` "
+       "(values = core.flags fields)"),
 )
 
 SERVICES: tuple[Service, ...] = (
@@ -394,7 +395,7 @@ WAIT_FOR_SUBSCRIBER = _p(
     "sim: hold the run until a node whose name starts with this (e.g. the recorder, "
     "'lubrig_recorder') subscribes to every output topic; empty = do not wait",
 )
-DEFAULT_REALTIME_PRIORITY = 50
+DEFAULT_REALTIME_PRIORITY = 0
 REALTIME_PRIORITY = _p(
     "realtime_priority", "integer", DEFAULT_REALTIME_PRIORITY,
     "realtime: SCHED_FIFO priority 1..99 of the loop thread so other processes cannot delay its "

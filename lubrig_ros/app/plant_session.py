@@ -644,7 +644,7 @@ class PlantSession:
             samples = self.ticks if self.mode != "sim" else self.sample_index
             share = self.misses / samples if samples else 0.0
             timing = Status(
-                name="lubrig/plant: timing",
+                name="timing",  # the node prefixes its fully qualified name
                 hardware_id=HARDWARE_ID,
                 level="warn" if share > MISS_SHARE_WARN else "ok",
                 message=(
@@ -675,7 +675,7 @@ class PlantSession:
             if self.rejected_since_report:
                 problems.append(f"{self.rejected_since_report} bad band value(s) rejected")
             band = Status(
-                name="lubrig/plant: band input",
+                name="band input",
                 hardware_id=HARDWARE_ID,
                 level="warn" if problems else "ok",
                 message="; ".join(problems) or "ok",

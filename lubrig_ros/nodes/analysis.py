@@ -173,7 +173,7 @@ class Analysis(Node):
         if out.statuses:
             diagnostics = DiagnosticArray()
             diagnostics.header.stamp = now
-            diagnostics.status = [common.diagnostic_status(s) for s in out.statuses]
+            diagnostics.status = [common.diagnostic_status(s, self) for s in out.statuses]
             p["/diagnostics"].publish(diagnostics)
 
 

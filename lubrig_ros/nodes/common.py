@@ -190,9 +190,14 @@ def check_topic_namespace(node: Node, value: str) -> None:
     )
 
 
-def diagnostic_status(status: Status) -> DiagnosticStatus:
-    """The DiagnosticStatus message of a plain-data status."""
-    msg = DiagnosticStatus(name=status.name, hardware_id=status.hardware_id, message=status.message)
+def diagnostic_status(status: Status, node: Node) -> DiagnosticStatus:
+    """The DiagnosticStatus message of a plain-data status, named "<node FQN>: <status>".
+
+    The fully qualified name tells two rigs' statuses apart on the one /diagnostics topic
+    (e.g. "/rigA/plant: timing" and "/rigB/plant: timing").
+    """
+    name = f"{node.get_fully_qualified_name()}: {status.name}"
+    msg = DiagnosticStatus(name=name, hardware_id=status.hardware_id, message=status.message)
     msg.level = _LEVELS[status.level]
     msg.values = [KeyValue(key=k, value=v) for k, v in status.values]
     return msg

@@ -264,7 +264,7 @@ class Plant(Node):
     def _publish_diagnostics(self) -> None:
         array = DiagnosticArray()
         array.header.stamp = self.get_clock().now().to_msg()
-        array.status = [common.diagnostic_status(s) for s in self.session.diagnostics()]
+        array.status = [common.diagnostic_status(s, self) for s in self.session.diagnostics()]
         self.pub_diag.publish(array)
 
     def close(self) -> None:
