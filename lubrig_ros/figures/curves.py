@@ -7,6 +7,7 @@ backend) and return it, so that callers can save it and tests can inspect axes a
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -47,7 +48,7 @@ def write_friction_csv(path: str | Path, params: FrictionParameters | None = Non
     return path
 
 
-def _shade_zones(ax: object, peak_v: float, min_v: float, lo: float, hi: float) -> None:
+def _shade_zones(ax: Any, peak_v: float, min_v: float, lo: float, hi: float) -> None:
     """Shade and label zones 1/2/3 between the x limits lo and hi (log axis)."""
     edges = {1: (lo, peak_v), 2: (peak_v, min_v), 3: (min_v, hi)}
     for zone, (a, b) in edges.items():

@@ -160,6 +160,7 @@ def colormap_names(fig: Figure) -> set[str]:
 
     names = set()
     for artist in fig.findobj(lambda a: isinstance(a, ScalarMappable)):
-        if artist.get_array() is not None and not isinstance(artist, ContourSet):
-            names.add(artist.get_cmap().name)
+        mappable: Any = artist  # a ScalarMappable (findobj is typed as returning Artists)
+        if mappable.get_array() is not None and not isinstance(artist, ContourSet):
+            names.add(mappable.get_cmap().name)
     return names

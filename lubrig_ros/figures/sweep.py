@@ -104,7 +104,8 @@ def map_figure(
     label = note or label
     fig = Figure(figsize=(6.4, 4.8), constrained_layout=True)
     ax = fig.add_subplot()
-    cmap, norm = style.MAP_CMAP, _norm(values, log)
+    cmap: str | ListedColormap = style.MAP_CMAP
+    norm = _norm(values, log)
     if column == "linear_stable":
         cmap = ListedColormap(list(style.BINARY_COLOURS), name="lubrig_binary")
         norm = BoundaryNorm([-0.5, 0.5, 1.5], 2)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import array
 import math
+from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -93,7 +94,7 @@ class Analysis(Node):
         self.pubs = {name: create_publisher(self, name) for name in OUTPUTS}
         create_subscription(self, "state_block", self._on_state_block)
         create_subscription(self, "state", self._on_state)
-        create_subscription(self, "band_velocity", lambda m: self.session.band_input(m.data))
+        create_subscription(self, "band_velocity", self._on_band)
         create_subscription(self, "run_config", self._on_run_config)
         self.create_timer(values["publish_period"], self._tick)
         self.get_logger().info(f"analysis: window {settings.window} samples, {settings.n_scales} scales")
@@ -112,6 +113,9 @@ class Analysis(Node):
         self.session.samples_input(
             msg.displacement, msg.velocity, msg.band_velocity, msg.relative_velocity, newest
         )
+
+    def _on_band(self, msg: Any) -> None:
+        self.session.band_input(msg.data)
 
     def _on_state(self, msg: RigState) -> None:
         self.session.samples_input(

@@ -230,7 +230,7 @@ class BeltDrive(Node):
                 self.get_logger().info(f"sim: waiting for flow_progress from {missing}")
             return False
         waiting = None
-        if now - self.seen_at < self.start_delay:
+        if self.seen_at is None or now - self.seen_at < self.start_delay:
             return False
         if self.publisher.get_subscription_count() == 0:
             waiting = "the plant's subscription to the band blocks"

@@ -97,7 +97,7 @@ def declare(node: Node, spec: NodeParameter, default: Any = None) -> Any:
     text = ParameterDescriptor(description=spec.description)
     if spec.type == "string_array":
         # an empty list would be declared as a byte array: declare the type, no value means []
-        declared = node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, text)
+        declared: Any = node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, text)
         given = declared.value if declared.value is not None else list(value or ())
         checked = spec.check(list(given))
         if declared.value is None:  # not given: initialize it (an uninitialized one cannot be read)

@@ -219,7 +219,8 @@ class Plant(Node):
     def _publish_clock(self, t: float) -> None:
         clock = self._clock_msg
         clock.clock.sec, clock.clock.nanosec = cdr.stamp_of(t)
-        self.pub_clock.publish(clock)
+        if self.pub_clock is not None:
+            self.pub_clock.publish(clock)
 
     def _publish_block(self, block: PlantBlock) -> None:
         """Sim: one RigStateBlock, then flow_progress and /clock (called with the session lock)."""

@@ -284,7 +284,7 @@ class View:
 
         return callback
 
-    def _block_callback(self, served: Served, block_cls: type, sample_cls: type) -> Any:
+    def _block_callback(self, served: Served, block_cls: Any, sample_cls: Any) -> Any:
         from rclpy.serialization import deserialize_message, serialize_message
 
         per_block = ("header", "sample_index", "segment")
