@@ -165,9 +165,9 @@ def _plain(value: object) -> object:
     """Field values comparable across readers (sequences as lists, messages as dicts of fields)."""
     if hasattr(value, "get_fields_and_field_types"):  # rclpy message
         return {n: _plain(getattr(value, n)) for n in value.get_fields_and_field_types()}
-    if dataclasses.is_dataclass(value):  # rosbags message (constants are ClassVars, not fields)
+    if dataclasses.is_dataclass(value):  # rosbags message; ROS constants are UPPER_CASE
         return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)
-                if f.name != "__msgtype__"}
+                if f.name != "__msgtype__" and f.name.lower() == f.name}
     if hasattr(value, "__slots__") and not isinstance(value, (list, tuple, np.ndarray)):  # mcap_ros2
         return {n: _plain(getattr(value, n)) for n in value.__slots__ if n.lower() == n}
     if isinstance(value, (list, tuple, np.ndarray)) or type(value).__name__ == "array":
