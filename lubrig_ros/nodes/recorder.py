@@ -38,14 +38,14 @@ import signal
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import yaml
 
 from lubrig_ros.app.accounting import StreamAccount
 from lubrig_ros.app.cdr import INDEXED_TYPES, leading_stamp_ns, sample_span
-from lubrig_ros.app.contract import DEFAULT_NAMESPACE, Topic, documented_topics, resolve
+from lubrig_ros.app.contract import DEFAULT_NAMESPACE, QoS, Topic, documented_topics, resolve
 from lubrig_ros.app.contract import select_topics as _select_topics
 from lubrig_ros.app.fileio import write_text_atomic
 from lubrig_ros.bag.errors import BagError
@@ -64,9 +64,24 @@ PROGRESS_TYPE = "lubrig_interfaces/msg/FlowProgress"
 BLOCK_TYPES = ("lubrig_interfaces/msg/RigStateBlock", "lubrig_interfaces/msg/BandVelocityBlock")
 #: After a stop request, wait up to this long for samples the plant announced but not yet taken.
 CATCH_UP_S = 5.0
+READER_DEPTH = 10_000  # samples kept by each reader while its worker is busy (reader_qos)
 
 
 # ----------------------------------------------------------------------------- worker process
+
+
+def reader_qos(qos: QoS) -> QoS:
+    """The recorder's reader QoS: the contract's, with a history of at least READER_DEPTH.
+
+    A keep_last reader drops its oldest sample when its history is full; the DDS threads keep
+    receiving while the worker's Python thread is starved of CPU, so a deep history (10 s of a
+    1 kHz stream, about 1 MB of RigState) rides out a busy machine instead of losing samples.
+    Reader depth plays no part in QoS compatibility. Latched topics keep their depth.
+    """
+    if qos.latched or qos.history != "keep_last":
+        return qos
+    return replace(qos, depth=max(qos.depth, READER_DEPTH))
+
 
 
 def _worker(wid: int, specs: list[Topic], first_index: int, out: mp.Queue, stop: mp.Event) -> None:
@@ -107,11 +122,12 @@ def _worker(wid: int, specs: list[Topic], first_index: int, out: mp.Queue, stop:
         return cb
 
     subs = []
-    for i, spec in enumerate(specs):  # QoS from the contract (app/contract.py)
+    for i, spec in enumerate(specs):  # QoS from the contract (app/contract.py), deeper history
         subs.append(
             node.create_subscription(
                 message_class(spec.msgtype), spec.name,
-                make_cb(first_index + i, spec.msgtype in BLOCK_TYPES), qos_profile(spec.qos), raw=True,
+                make_cb(first_index + i, spec.msgtype in BLOCK_TYPES), qos_profile(reader_qos(spec.qos)),
+                raw=True,
             )
         )
     executor = EventsExecutor()
