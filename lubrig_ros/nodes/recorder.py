@@ -59,6 +59,8 @@ SIM_HOLD_NS = 300_000_000  # wait this long for /clock before stamping an unstam
 #: The recorder's flow-control participant: <namespace>/lubrig_recorder (app/contract.py
 #: RECORDER_PARTICIPANT; `lubrig rig` puts it in belt_drive's required_consumers).
 RECORDER_NODE = "lubrig_recorder"
+#: The participant name (relative to the namespace) `lubrig rig` checks before pacing on it.
+FLOW_PARTICIPANT = RECORDER_NODE
 HEARTBEAT_S = 0.2
 PROGRESS_TYPE = "lubrig_interfaces/msg/FlowProgress"
 BLOCK_TYPES = ("lubrig_interfaces/msg/RigStateBlock", "lubrig_interfaces/msg/BandVelocityBlock")
