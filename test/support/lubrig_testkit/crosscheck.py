@@ -3,7 +3,7 @@
 Neither uses lubrig_ros' type store: rosbags' AnyReader registers the message definitions stored
 in the bag (custom types included), mcap_ros2 decodes from the MCAP schemas. Values per topic:
 Clock its time, RigState its displacement, a block its samples (flattened into the topic's
-list), FlowProgress its samples, others their data.
+list), FlowProgress its samples, scalar types their data, other types None (counted only).
 """
 
 from __future__ import annotations
@@ -32,7 +32,10 @@ def values_of(msg: object) -> list:
         return [int(msg.samples)]
     if hasattr(msg, "position"):  # legacy layout: sensor_msgs/JointState on state
         return [float(msg.position[0])]
-    return [msg.data]
+    data = getattr(msg, "data", None)
+    if isinstance(data, (bool, int, float, str)):
+        return [data]
+    return [None]  # other types (diagnostics, images, arrays): counted, not compared
 
 
 def value_of(msg: object) -> float | str:
