@@ -420,10 +420,8 @@ class Recorder:
     def newest_rig_ns(self) -> int:
         """Rig time of the newest state_block sample written (0 before the first)."""
         account = next((t.account for t in self.topics if t.spec.name == self.state_block), None)
-        if account is None or not account.segments:
-            return 0
-        seg = account.segments[account.newest_segment]
-        return seg.last_time_ns or 0
+        seg = None if account is None else account.segments.get(account.newest_segment)
+        return 0 if seg is None or seg.last_time_ns is None else seg.last_time_ns  # announced only: 0
 
     # ------------------------------------------------------------------ accounting results
     @property
