@@ -45,7 +45,14 @@ import yaml
 
 from lubrig_ros.app.accounting import StreamAccount
 from lubrig_ros.app.cdr import INDEXED_TYPES, leading_stamp_ns, sample_span
-from lubrig_ros.app.contract import DEFAULT_NAMESPACE, QoS, Topic, documented_topics, resolve
+from lubrig_ros.app.contract import (
+    DEFAULT_NAMESPACE,
+    RECORDER_PARTICIPANT,
+    QoS,
+    Topic,
+    documented_topics,
+    resolve,
+)
 from lubrig_ros.app.contract import select_topics as _select_topics
 from lubrig_ros.app.fileio import write_text_atomic
 from lubrig_ros.bag.errors import BagError
@@ -58,7 +65,7 @@ BATCH_PERIOD_S = 0.02
 SIM_HOLD_NS = 300_000_000  # wait this long for /clock before stamping an unstamped message
 #: The recorder's flow-control participant: <namespace>/lubrig_recorder (app/contract.py
 #: RECORDER_PARTICIPANT; `lubrig rig` puts it in belt_drive's required_consumers).
-RECORDER_NODE = "lubrig_recorder"
+RECORDER_NODE = RECORDER_PARTICIPANT
 #: The participant name (relative to the namespace) `lubrig rig` checks before pacing on it.
 FLOW_PARTICIPANT = RECORDER_NODE
 HEARTBEAT_S = 0.2
