@@ -19,10 +19,12 @@ import yaml
 from lubrig_testkit.crosscheck import read_mcap, read_rosbags
 from lubrig_testkit.harness import wait_until
 
-from lubrig_ros.app.contract import plant_topics
 from lubrig_ros.bag import check_bag, read_arrays, repair_bag
 
 SAMPLES = 3000  # 6 topics: 18,000 messages
+#: what the synthetic source publishes per sample (--scalars --clock): RigState on state
+SOURCE_TOPICS = {"/lubrig/state", "/lubrig/band_velocity", "/lubrig/displacement", "/lubrig/velocity",
+                 "/lubrig/friction_coefficient", "/clock"}
 
 
 def _record(procs, tmp_path: Path, samples: int, extra: tuple[str, ...] = (),
@@ -33,7 +35,8 @@ def _record(procs, tmp_path: Path, samples: int, extra: tuple[str, ...] = (),
     rec = procs.module("lubrig_ros.nodes.recorder", "-o", str(bag), "--config", str(cfg), *extra)
     rec.wait_for_output("recording", timeout=90)
     pub = procs.run_module(
-        "lubrig_testkit.synthetic", "publish", "--samples", str(samples), *source, timeout=180
+        "lubrig_testkit.synthetic", "publish", "--samples", str(samples), "--scalars", "--clock",
+        *source, timeout=180,
     )
     assert pub.returncode == 0, pub.stdout + pub.stderr
     published = json.loads(pub.stdout.strip().splitlines()[-1])["published"]
@@ -69,7 +72,7 @@ def _expect_all(bag: Path, published: dict[str, int]) -> None:
 def test_sigint_finalizes_complete_bag(procs, tmp_path: Path) -> None:
     rec, bag, cfg, published = _record(procs, tmp_path, SAMPLES)
     assert rec.stop(signal.SIGINT, timeout=60) == 0, rec.log()
-    assert set(published) == set(plant_topics())
+    assert set(published) == SOURCE_TOPICS
     _expect_all(bag, published)
     # what it says it wrote is what it wrote: every sample, and the run configuration once
     assert _reported_counts(rec.output()) == {**published, "/lubrig/run_config": 1}
@@ -79,7 +82,8 @@ def test_sigint_finalizes_complete_bag(procs, tmp_path: Path) -> None:
     assert summary.custom_data["lubrig_ros.version"]
     assert read_rosbags(bag)["/lubrig/run_config"] == [cfg.read_text()]
     arrays = read_arrays(bag)
-    assert arrays["/lubrig/state"]["position"].shape == (SAMPLES,)
+    assert arrays["/lubrig/state"]["displacement"].shape == (SAMPLES,)
+    assert (arrays["/lubrig/state"]["sample_index"] == range(SAMPLES)).all()
     assert (arrays["/lubrig/displacement"]["data"] == range(SAMPLES)).all()
 
 
@@ -97,14 +101,30 @@ def test_sigkill_then_repair_keeps_flushed_messages(procs, tmp_path: Path) -> No
 
 
 def test_realtime_source_counts_reported_equal_the_bag(procs, tmp_path: Path) -> None:
-    """A paced 1 kHz source without flow control: samples a starved recorder loses are accounted."""
+    """A paced 1 kHz source without flow control: samples a starved recorder loses are accounted.
+
+    Exit 0 exactly when the state stream is complete; else 1 with the stream and its first gap
+    named, as accounting.json and the bag itself (its sample indices) say.
+    """
     rec, bag, _cfg, published = _record(procs, tmp_path, 2000, source=("--rate", "1000"))
-    assert rec.stop(signal.SIGINT, timeout=60) == 0, rec.log()
+    status = rec.stop(signal.SIGINT, timeout=60)
     reported = _reported_counts(rec.output())
+    accounting = json.loads((bag / "accounting.json").read_text())
+    state = accounting["streams"]["/lubrig/state"]
+    indices = read_arrays(bag)["/lubrig/state"]["sample_index"].tolist()
+    missing = sorted(set(range(indices[-1] + 1)) - set(indices))  # the stream starts at index 0
+    assert state["samples"] == len(indices) and state["duplicates"] == 0
+    if missing:  # a starved recorder: loud, named, exit 1
+        assert status == 1, rec.log()
+        assert state["gaps"][0]["first_index"] == missing[0]
+        assert f"/lubrig/state: {len(missing)} samples missing" in rec.errors()
+    else:
+        assert status == 0 and state["complete"], rec.log()
     by_rosbags, by_mcap = read_rosbags(bag), read_mcap(bag)
     assert by_rosbags == by_mcap
     assert reported == {topic: len(values) for topic, values in by_rosbags.items()}
     assert set(reported) == {*published, "/lubrig/run_config"}
+    assert reported["/lubrig/state"] == len(indices)
     for topic, n in published.items():
         got = by_rosbags[topic]
         assert 0 < len(got) <= n, (topic, len(got))

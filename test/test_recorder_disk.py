@@ -16,11 +16,12 @@ from pathlib import Path
 import pytest
 from lubrig_testkit.crosscheck import read_mcap, read_rosbags
 from lubrig_testkit.harness import PYTHON
-from lubrig_testkit.synthetic import START_NS
+from lubrig_testkit.synthetic import PER_SAMPLE_TOPICS, SCALAR_TOPICS, START_NS
 
-from lubrig_ros.app.contract import plant_topics
+from lubrig_ros.app.contract import resolve
 from lubrig_ros.bag import BagError, check_bag, repair_bag
 
+SOURCE_TOPICS = (*PER_SAMPLE_TOPICS, *SCALAR_TOPICS)
 LIMIT = 120_000  # bytes per file; 3,000 samples x 6 topics make ~460 kB of bag
 SAMPLES = 3000
 
@@ -52,7 +53,7 @@ def test_file_size_limit_stops_recording_cleanly(procs, tmp_path: Path) -> None:
     # flow control: the publisher goes on once the recorder has every sample (or has stopped)
     pub = procs.run_module(
         "lubrig_testkit.synthetic", "publish", "--samples", str(SAMPLES), "--flow-control", "100",
-        timeout=180,
+        "--scalars", "--clock", timeout=180,
     )
     assert pub.returncode == 0, pub.stdout + pub.stderr
     published = json.loads(pub.stdout.strip().splitlines()[-1])["published"]
@@ -68,7 +69,8 @@ def test_file_size_limit_stops_recording_cleanly(procs, tmp_path: Path) -> None:
     assert 0 < mcap.stat().st_size <= LIMIT
     # the in-place finalization needs space too, so it fails under the cap: the bag is left
     # unfinalized (no summary, no metadata.yaml), the failed attempt leaves no temporary files
-    assert sorted(p.name for p in bag.iterdir()) == ["bag.mcap", "run_config.yaml"]
+    # (accounting.json, a few hundred bytes written after the stop, fits under the cap)
+    assert sorted(p.name for p in bag.iterdir()) == ["accounting.json", "bag.mcap", "run_config.yaml"]
     with pytest.raises(BagError, match="repair"):
         check_bag(bag)
 
@@ -81,7 +83,7 @@ def test_file_size_limit_stops_recording_cleanly(procs, tmp_path: Path) -> None:
 
     by_rosbags, by_mcap = read_rosbags(bag), read_mcap(bag)
     assert by_rosbags == by_mcap
-    assert set(published) == set(plant_topics())
+    assert set(published) == {*(resolve("/lubrig", n) for n in SOURCE_TOPICS), "/clock"}
     for topic in published:
         got = by_rosbags.get(topic, [])
         # what was flushed before the error, in order: a gap-free prefix of the published run

@@ -17,7 +17,7 @@ import pytest
 from lubrig_testkit.harness import DomainLease, Probe, ros_env
 from std_msgs.msg import Float64
 
-from lubrig_ros.bag import BagWriter, read_arrays
+from lubrig_ros.bag import BagWriter, check_bag, read_arrays
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
 from lubrig_ros.core.wavelet import dominant_frequencies
@@ -41,7 +41,7 @@ def test_recorded_run_replayed_into_analysis_matches_offline(procs, tmp_path: Pa
     fundamental = config.band.fundamental_hz
     offline = dominant_frequencies(x - x.mean(), 1e-3, fundamental_hz=fundamental)[0].frequency_hz
     assert 9.0 < offline < 10.0  # 2nd harmonic of 4.76 Hz
-    recorded = read_arrays(bag)["/lubrig/state"]["position"]
+    recorded = read_arrays(bag)["/lubrig/state_block"]["displacement"]  # one entry per sample
     assert len(recorded) == len(x)
     from_bag = dominant_frequencies(recorded - recorded.mean(), 1e-3, fundamental_hz=fundamental)
     assert from_bag[0].frequency_hz == offline
@@ -59,11 +59,13 @@ def test_recorded_run_replayed_into_analysis_matches_offline(procs, tmp_path: Pa
                 "-p", "window:=2048", "-p", "n_scales:=96", "-p", "publish_period:=0.2", env=env,
             )
             replay = procs.script(
-                "lubrig", "replay", str(bag), "--clock", "--topics", "/lubrig/state",
-                "/lubrig/band_velocity", "--wait-for-subscribers", "90", env=env,
+                "lubrig", "replay", str(bag), "--clock", "--topics", "/lubrig/state_block",
+                "/lubrig/band_velocity_block", "--wait-for-subscribers", "90", env=env,
             )
             assert replay.wait(timeout=180) == 0, replay.log()
-            assert "published 12001 messages" in replay.output()  # 6001 states + 6000 band samples
+            blocks = sum(t.count for t in check_bag(bag).topics
+                         if t.name in ("/lubrig/state_block", "/lubrig/band_velocity_block"))
+            assert f"published {blocks} messages" in replay.output()  # the blocks as recorded
             # an update every publish_period of rig time once 2048 samples are in: ~ (6 - 2) / 0.2;
             # on a loaded machine the analysis may still work through its input after replay ends
             values = probe.messages["/lubrig/dominant_frequency"]

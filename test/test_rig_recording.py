@@ -2,33 +2,18 @@
 
 from __future__ import annotations
 
-from collections import Counter
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from lubrig_testkit.crosscheck import read_mcap, read_rosbags
 from matplotlib.image import imread
-from mcap.reader import make_reader
 from rosbags.rosbag2 import Reader
 
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
 from lubrig_ros.report import trajectory_from_bag
-
-PLANT_TOPICS = ("/lubrig/state", "/lubrig/displacement", "/lubrig/velocity", "/lubrig/friction_coefficient")
-
-
-def _counts_rosbags(bag: Path) -> Counter:
-    with Reader(bag) as reader:
-        return Counter(conn.topic for conn, _t, _d in reader.messages())
-
-
-def _counts_mcap(bag: Path) -> Counter:
-    (path,) = bag.glob("*.mcap")
-    with open(path, "rb") as f:
-        reader = make_reader(f)
-        assert reader.get_summary() is not None, "no MCAP summary: bag not finalized"
-        return Counter(channel.topic for _s, channel, _m in reader.iter_messages())
 
 
 @pytest.mark.slow  # a whole `lubrig rig` run with recorder and report
@@ -41,13 +26,17 @@ def test_rig_records_and_reports_case1(procs, tmp_path: Path) -> None:
     report = out / "report" / "report.md"
     assert res.stdout.strip().splitlines()[-1] == f"report: {report}"
     bag = out / "bag"
-    # two independent readers agree; the plant published the initial state + 2000 steps
-    by_rosbags, by_mcap = _counts_rosbags(bag), _counts_mcap(bag)
+    # two independent readers agree (custom types decoded from the bag's schemas); every sample
+    # once, in order: the plant's initial state + 2000 steps, and 2000 band samples (1..N)
+    by_rosbags, by_mcap = read_rosbags(bag), read_mcap(bag)
     assert by_rosbags == by_mcap
-    for topic in PLANT_TOPICS:
-        assert by_rosbags[topic] == 2001, (topic, by_rosbags)
-    assert by_rosbags["/lubrig/band_velocity"] == 2000  # samples 1..N (sample 0 is the start state)
-    assert by_rosbags["/lubrig/run_config"] == 1
+    reference = simulate(load_case(1).with_overrides(duration=2.0))
+    assert by_rosbags["/lubrig/state_block"] == reference.displacement.tolist()
+    assert by_rosbags["/lubrig/band_velocity_block"] == reference.band_velocity[1:].tolist()
+    assert len(by_rosbags["/lubrig/run_config"]) == 1
+    accounting = json.loads((bag / "accounting.json").read_text())  # the recorder's own count
+    assert accounting["complete"] and accounting["participant"] == "/lubrig/lubrig_recorder"
+    assert accounting["streams"]["/lubrig/state_block"]["samples"] == 2001
     with Reader(bag) as reader:  # log times are rig time: the bag spans the 2 s run
         assert reader.start_time >= 0 and reader.end_time <= 2.5e9, (reader.start_time, reader.end_time)
     # the report: page, figures with content
@@ -59,7 +48,6 @@ def test_rig_records_and_reports_case1(procs, tmp_path: Path) -> None:
     assert "case01" in text and "paper" in text
     # x(t) of the recorded run equals the offline core run sample for sample
     config, trajectory = trajectory_from_bag(bag)
-    reference = simulate(load_case(1).with_overrides(duration=2.0))
     assert config.to_yaml() == reference_config_yaml()
     assert len(trajectory) == len(reference) == 2001
     np.testing.assert_allclose(trajectory.time, reference.time, rtol=0, atol=1e-12)

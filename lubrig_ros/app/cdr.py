@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import struct
+from dataclasses import dataclass
 
 _F64 = {1: struct.Struct("<d"), 0: struct.Struct(">d")}
 _STAMP = {1: struct.Struct("<iI"), 0: struct.Struct(">iI")}
@@ -43,3 +44,63 @@ def stamp_of(t: float) -> tuple[int, int]:
     """(sec, nanosec) of a time in seconds, as builtin_interfaces/Time holds it (nanosec < 1e9)."""
     sec = math.floor(t)
     return int(sec), min(round((t - sec) * 1e9), 999_999_999)
+
+
+_U32 = {1: struct.Struct("<I"), 0: struct.Struct(">I")}
+_U64 = {1: struct.Struct("<Q"), 0: struct.Struct(">Q")}
+_ALIGN_BASE = 4  # CDR alignment counts from the body, after the 4-byte encapsulation header
+
+
+def _align(pos: int, size: int) -> int:
+    body = pos - _ALIGN_BASE
+    return _ALIGN_BASE + (body + size - 1) // size * size
+
+
+@dataclass(frozen=True)
+class SampleSpan:
+    """Which samples one RigState / RigStateBlock / BandVelocityBlock message carries."""
+
+    stamp_ns: int  # rig time of the first sample (header stamp)
+    segment: int
+    first_index: int  # sample_index (RigState) or first_sample_index (blocks)
+    count: int  # 1 for RigState, the array length for blocks
+    period_ns: float | None  # sample_period of a block, ns; None for RigState
+
+
+#: Message types whose samples carry an index (sample_index / first_sample_index) and a segment.
+INDEXED_TYPES: tuple[str, ...] = (
+    "lubrig_interfaces/msg/RigState",
+    "lubrig_interfaces/msg/RigStateBlock",
+    "lubrig_interfaces/msg/BandVelocityBlock",
+)
+
+
+def sample_span(msgtype: str, data: bytes) -> SampleSpan:
+    """The SampleSpan of a serialized message of one of INDEXED_TYPES, read from the CDR bytes.
+
+    Layout (lubrig_interfaces/msg/*.msg): Header (int32 sec, uint32 nanosec, string frame_id),
+    then for RigState uint64 sample_index, uint32 segment; for the blocks float64 sample_period,
+    uint64 first_sample_index, uint32 segment and the first float64[] (its uint32 length).
+    ValueError for another type or a malformed payload (too short, unknown encapsulation).
+    """
+    if msgtype not in INDEXED_TYPES:
+        raise ValueError(f"message type {msgtype!r} carries no sample index; valid: {INDEXED_TYPES}")
+    stamp = leading_stamp_ns(data)  # checks length >= 12 and the encapsulation
+    endian = data[1]
+    u32, u64, f64 = _U32[endian], _U64[endian], _F64[endian]
+    try:
+        (name_len,) = u32.unpack_from(data, 12)
+        pos = 16 + name_len
+        if msgtype == INDEXED_TYPES[0]:
+            pos = _align(pos, 8)
+            (index,) = u64.unpack_from(data, pos)
+            (segment,) = u32.unpack_from(data, pos + 8)
+            return SampleSpan(stamp, int(segment), int(index), 1, None)
+        pos = _align(pos, 8)
+        (period,) = f64.unpack_from(data, pos)
+        (first,) = u64.unpack_from(data, pos + 8)
+        (segment,) = u32.unpack_from(data, pos + 16)
+        (count,) = u32.unpack_from(data, _align(pos + 20, 4))
+    except struct.error as exc:
+        raise ValueError(f"{msgtype} payload of {len(data)} bytes is truncated") from exc
+    return SampleSpan(stamp, int(segment), int(first), int(count), float(period) * 1e9)

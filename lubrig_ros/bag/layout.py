@@ -8,10 +8,12 @@ Nothing here writes a bag; writer, reader and repair import this module and neve
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
 
 import yaml
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from lubrig_ros.bag.errors import BagError
@@ -19,15 +21,60 @@ from lubrig_ros.bag.errors import BagError
 RUN_CONFIG_KEY = "lubrig_ros.run_config"
 VERSION_KEY = "lubrig_ros.version"
 CONFIG_SIDECAR = "run_config.yaml"  # copy of the run configuration, kept for repair after a crash
+ACCOUNTING_SIDECAR = "accounting.json"  # the recorder's per-stream sample accounting (app/accounting.py)
+
+#: The rig's own interface package (lubrig_interfaces, ament_cmake + rosidl).
+INTERFACE_PACKAGE = "lubrig_interfaces"
 
 _TYPESTORE: Typestore | None = None
 
 
+def interface_msg_dirs() -> list[Path]:
+    """Where lubrig_interfaces' .msg files may be, in the order they are looked for.
+
+    The installed package first (what the nodes publish with: ``$PREFIX/share/lubrig_interfaces/msg``
+    of this interpreter's prefix, then of every AMENT_PREFIX_PATH entry, as a colcon workspace
+    sets it), then the repository's source directory next to the lubrig_ros package.
+    """
+    prefixes = [Path(sys.prefix)]
+    prefixes += [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    dirs = [prefix / "share" / INTERFACE_PACKAGE / "msg" for prefix in prefixes]
+    dirs.append(Path(__file__).resolve().parents[2] / INTERFACE_PACKAGE / "msg")
+    return dirs
+
+
+def interface_definitions() -> dict[str, str]:
+    """``{"lubrig_interfaces/msg/Name": msg text}`` of the first directory holding .msg files.
+
+    BagError naming the directories looked in when none has them (the recorder cannot write the
+    rig's messages without their definitions).
+    """
+    dirs = interface_msg_dirs()
+    for directory in dirs:
+        files = sorted(directory.glob("*.msg")) if directory.is_dir() else []
+        if files:
+            return {f"{INTERFACE_PACKAGE}/msg/{f.stem}": f.read_text(encoding="utf-8") for f in files}
+    raise BagError(
+        f"no {INTERFACE_PACKAGE} message definitions (*.msg) found in "
+        f"{', '.join(str(d) for d in dirs)}: build the interface package (`make setup`)"
+    )
+
+
 def typestore() -> Typestore:
-    """The rosbags type store used for message definitions (ROS 2 Kilted)."""
+    """The rosbags type store: ROS 2 Kilted's types plus lubrig_interfaces' messages.
+
+    lubrig_interfaces' .msg files are registered from their text (interface_definitions), so the
+    writer stores their schemas (ros2msg, with the RIHS01 type hash rosidl computes) in the MCAP
+    and rosbags can (de)serialize them.
+    """
     global _TYPESTORE
     if _TYPESTORE is None:
-        _TYPESTORE = get_typestore(Stores.ROS2_KILTED)
+        store = get_typestore(Stores.ROS2_KILTED)
+        types: dict = {}
+        for name, text in interface_definitions().items():
+            types.update(get_types_from_msg(text, name))
+        store.register(types)
+        _TYPESTORE = store
     return _TYPESTORE
 
 

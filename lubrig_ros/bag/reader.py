@@ -154,10 +154,45 @@ class TopicArrays:
         return self.t if key == "t" else self.fields[key]
 
 
+#: Per-sample fields of lubrig_interfaces RigState (and the arrays of RigStateBlock), in order.
+RIG_STATE_FIELDS: tuple[str, ...] = (
+    "displacement", "velocity", "friction_coefficient", "friction_force", "band_velocity",
+    "relative_velocity", "belt_travel",
+)
+RIG_STATE = "lubrig_interfaces/msg/RigState"
+RIG_STATE_BLOCK = "lubrig_interfaces/msg/RigStateBlock"
+BAND_VELOCITY_BLOCK = "lubrig_interfaces/msg/BandVelocityBlock"
+BLOCK_FIELDS = {RIG_STATE_BLOCK: RIG_STATE_FIELDS, BAND_VELOCITY_BLOCK: ("band_velocity",)}
+
+
+def _stamp_s(stamp: object) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9  # type: ignore[attr-defined]
+
+
+def _block_samples(msgtype: str, msg: object) -> dict[str, np.ndarray]:
+    """Per-sample arrays of a block: its fields, stamp, sample_index, segment (n samples each)."""
+    names = BLOCK_FIELDS[msgtype]
+    cols = {name: np.asarray(getattr(msg, name), dtype=float) for name in names}
+    n = len(cols[names[0]])
+    for name, col in cols.items():
+        if col.size != n:
+            raise BagError(f"{msgtype}: field {name} has {col.size} samples, expected {n}")
+    first = int(msg.first_sample_index)  # type: ignore[attr-defined]
+    cols["stamp"] = _stamp_s(msg.header.stamp) + np.arange(n) * float(msg.sample_period)  # type: ignore[attr-defined]
+    cols["sample_index"] = np.arange(first, first + n, dtype=np.int64)
+    cols["segment"] = np.full(n, int(msg.segment), dtype=np.int64)  # type: ignore[attr-defined]
+    return cols
+
+
 def _decode(msgtype: str, data: bytes) -> dict[str, object]:
     if msgtype == "std_msgs/msg/Float64" and len(data) >= 12 and data[1] == 1:
         return {"data": float64_value(data)}  # fast path; other encodings: rosbags below
     msg = typestore().deserialize_cdr(data, msgtype)
+    if msgtype == RIG_STATE:
+        out: dict[str, object] = {"stamp": _stamp_s(msg.header.stamp), "sample_index": int(msg.sample_index),
+                                  "segment": int(msg.segment)}
+        out.update({name: float(getattr(msg, name)) for name in RIG_STATE_FIELDS})
+        return out
     if msgtype == "sensor_msgs/msg/JointState":
         first = lambda arr: float(arr[0]) if len(arr) else np.nan  # noqa: E731
         return {
@@ -176,15 +211,23 @@ def _decode(msgtype: str, data: bytes) -> dict[str, object]:
 def read_arrays(bag: str | Path, topics: Iterable[str] | None = None) -> dict[str, TopicArrays]:
     """Read a bag into numpy arrays per topic.
 
-    Float64/UInt8/Bool topics give field ``data``; JointState gives ``stamp``, ``position``,
-    ``velocity``, ``effort`` (first joint); Clock gives ``clock`` (s); other types give
-    ``message`` (an object array of rosbags messages).
+    Float64/UInt8/Bool topics give field ``data``; RigState gives ``stamp`` (s), ``sample_index``,
+    ``segment`` and its fields (RIG_STATE_FIELDS); a RigStateBlock / BandVelocityBlock topic is
+    flattened into one entry per SAMPLE (``t`` = the message's log time + i · sample_period, the
+    same fields as RigState / ``band_velocity``, ``stamp`` per sample); legacy JointState gives
+    ``stamp``, ``position``, ``velocity``, ``effort`` (first joint); Clock gives ``clock`` (s);
+    other types give ``message`` (an object array of rosbags messages).
     """
     times: dict[str, list[int]] = {}
     values: dict[str, dict[str, list[object]]] = {}
     types: dict[str, str] = {}
+    blocks: dict[str, list[tuple[int, dict[str, np.ndarray]]]] = {}
     for topic, msgtype, t, data in read_messages(bag, topics):
         types[topic] = msgtype
+        if msgtype in BLOCK_FIELDS:
+            cols = _block_samples(msgtype, typestore().deserialize_cdr(data, msgtype))
+            blocks.setdefault(topic, []).append((t, cols))
+            continue
         times.setdefault(topic, []).append(t)
         cols = values.setdefault(topic, {})
         for key, val in _decode(msgtype, data).items():
@@ -195,4 +238,9 @@ def read_arrays(bag: str | Path, topics: Iterable[str] | None = None) -> dict[st
             k: np.array(v, dtype=object if k == "message" else None) for k, v in values[topic].items()
         }
         out[topic] = TopicArrays(types[topic], np.array(ts, dtype=np.int64) / 1e9, fields)
+    for topic, parts in blocks.items():
+        names = list(parts[0][1])
+        joined = {name: np.concatenate([cols[name] for _t, cols in parts]) for name in names}
+        log = np.concatenate([t / 1e9 + (cols["stamp"] - cols["stamp"][:1]) for t, cols in parts])
+        out[topic] = TopicArrays(types[topic], log, joined)
     return out

@@ -1,17 +1,27 @@
 """`recorder` node: record the rig's topics into a rosbag2 bag (MCAP, zstd chunks).
 
-One Python process takes only ~2,500-3,000 messages/s, so subscriptions are spread over worker
-processes (multiprocessing, spawn). Each worker runs a real rclpy node with raw subscriptions
-(serialized CDR bytes, no deserialization) spun by a SingleThreadedExecutor, and ships
-(topic index, receive time, bytes) batches to this process, the only writer of the bag.
+Subscriptions are spread over worker processes (multiprocessing, spawn). Each worker runs a real
+rclpy node with raw subscriptions (serialized CDR bytes, no deserialization) spun by rclpy's
+EventsExecutor in a spin_once loop, and ships (topic index, receive time, bytes) batches to this
+process, the only writer of the bag (block messages at once, others every 20 ms).
+
+Accounting (app/accounting.py): every RigState, RigStateBlock and BandVelocityBlock written is
+counted per stream from its sample index and segment; gaps, duplicates and samples out of order
+are printed at the end, written to <bag>/accounting.json, and make the exit status 1.
+
+Flow control (sim): this process is the node ``<namespace>/lubrig_recorder`` (RECORDER_NODE) and
+publishes lubrig_interfaces/FlowProgress on ``<namespace>/flow_progress``: samples 0 once its
+state_block subscription has matched a publisher, after every state_block it has written the
+samples of that segment taken in order, and the latest value again every 0.2 s (heartbeat).
 
 Log times: receive time (system clock, ns); with --use-sim-time the rig time: the header stamp
 for stamped types, the /clock value for /clock, and for unstamped types the latest /clock value
 received before the message.
 
-Exit status: 0 after a clean stop (SIGINT/SIGTERM or --duration), 2 on bad arguments or an
-unwritable output, 1 if writing failed while recording (the bag is then finalized up to the
-last flushed chunk).
+Exit status: 0 after a clean stop (SIGINT/SIGTERM or --duration) with every stream complete,
+2 on bad arguments or an unwritable output, 1 if writing failed while recording (the bag is then
+finalized up to the last flushed chunk) or a stream has a gap, a duplicate or a sample out of
+order (named on stderr).
 """
 
 from __future__ import annotations
@@ -19,6 +29,7 @@ from __future__ import annotations
 import argparse
 import bisect
 import contextlib
+import json
 import math
 import multiprocessing as mp
 import os
@@ -27,79 +38,142 @@ import signal
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import yaml
 
-from lubrig_ros.app.cdr import leading_stamp_ns
-from lubrig_ros.app.contract import DEFAULT_NAMESPACE, Topic, documented_topics, resolve
+from lubrig_ros.app.accounting import StreamAccount
+from lubrig_ros.app.cdr import INDEXED_TYPES, leading_stamp_ns, sample_span
+from lubrig_ros.app.contract import (
+    DEFAULT_NAMESPACE,
+    RECORDER_PARTICIPANT,
+    QoS,
+    Topic,
+    documented_topics,
+    resolve,
+)
 from lubrig_ros.app.contract import select_topics as _select_topics
+from lubrig_ros.app.fileio import write_text_atomic
 from lubrig_ros.bag.errors import BagError
-from lubrig_ros.bag.layout import cdr_string
+from lubrig_ros.bag.layout import ACCOUNTING_SIDECAR, cdr_string
 from lubrig_ros.bag.repair import repair_bag
-from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, serialize_string
+from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, serialize_string, typestore
 from lubrig_ros.nodes.script import run_script
 
 BATCH_PERIOD_S = 0.02
 SIM_HOLD_NS = 300_000_000  # wait this long for /clock before stamping an unstamped message
+#: The recorder's flow-control participant: <namespace>/lubrig_recorder (app/contract.py
+#: RECORDER_PARTICIPANT; `lubrig rig` puts it in belt_drive's required_consumers).
+RECORDER_NODE = RECORDER_PARTICIPANT
+#: The participant name (relative to the namespace) `lubrig rig` checks before pacing on it.
+FLOW_PARTICIPANT = RECORDER_NODE
+HEARTBEAT_S = 0.2
+PROGRESS_TYPE = "lubrig_interfaces/msg/FlowProgress"
+BLOCK_TYPES = ("lubrig_interfaces/msg/RigStateBlock", "lubrig_interfaces/msg/BandVelocityBlock")
+#: After a stop request, wait up to this long for samples the plant announced but not yet taken.
+CATCH_UP_S = 5.0
+READER_DEPTH = 10_000  # samples kept by each reader while its worker is busy (reader_qos)
 
 
 # ----------------------------------------------------------------------------- worker process
 
 
+def reader_qos(qos: QoS) -> QoS:
+    """The recorder's reader QoS: the contract's, with a history of at least READER_DEPTH.
+
+    A keep_last reader drops its oldest sample when its history is full; the DDS threads keep
+    receiving while the worker's Python thread is starved of CPU, so a deep history (10 s of a
+    1 kHz stream, about 1 MB of RigState) rides out a busy machine instead of losing samples.
+    Reader depth plays no part in QoS compatibility. Latched topics keep their depth.
+    """
+    if qos.latched or qos.history != "keep_last":
+        return qos
+    return replace(qos, depth=max(qos.depth, READER_DEPTH))
+
+
+
 def _worker(wid: int, specs: list[Topic], first_index: int, out: mp.Queue, stop: mp.Event) -> None:
-    """Subscribe to specs (raw) and ship batches of (index, recv_ns, bytes) to out."""
+    """Subscribe to specs (raw) and ship batches of (index, recv_ns, bytes) to out.
+
+    Spun by rclpy's EventsExecutor with spin_once (its spin() fires no timer in this wheel and
+    keeps a core busy: ../shared/ros2-interfaces-on-pip.md), so shipping and the stop check are
+    done in the loop. A block message is shipped at once (the flow control waits for it), other
+    messages every BATCH_PERIOD_S. Reports ("matched", wid, [index]) once a subscription has a
+    publisher.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent coordinates the stop
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     import rclpy
-    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.experimental import EventsExecutor
     from rclpy.signals import SignalHandlerOptions
 
     from lubrig_ros.nodes.interfaces import message_class, qos_profile
 
     parent = os.getppid()
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node(f"lubrig_recorder_w{wid}_{os.getpid()}")
+    node = rclpy.create_node(f"{RECORDER_NODE}_w{wid}_{os.getpid()}")
     batch: list[tuple[int, int, bytes]] = []
+    urgent = [False]
     now = time.time_ns
 
-    def make_cb(index: int):
+    def make_cb(index: int, block: bool):
+        if block:
+            def cb_block(data: bytes) -> None:
+                batch.append((index, now(), data))
+                urgent[0] = True
+
+            return cb_block
+
         def cb(data: bytes) -> None:
             batch.append((index, now(), data))
 
         return cb
 
     subs = []
-    for i, spec in enumerate(specs):  # QoS from the contract (app/contract.py)
+    for i, spec in enumerate(specs):  # QoS from the contract (app/contract.py), deeper history
         subs.append(
             node.create_subscription(
-                message_class(spec.msgtype), spec.name, make_cb(first_index + i),
-                qos_profile(spec.qos), raw=True,
+                message_class(spec.msgtype), spec.name,
+                make_cb(first_index + i, spec.msgtype in BLOCK_TYPES), qos_profile(reader_qos(spec.qos)),
+                raw=True,
             )
         )
-
-    class _StopError(Exception):
-        pass
-
-    def ship() -> None:
-        nonlocal batch
-        if batch:
-            out.put(("data", wid, batch))
-            batch = []
-        if stop.is_set() or os.getppid() != parent:
-            raise _StopError
-
-    node.create_timer(BATCH_PERIOD_S, ship)
-    executor = SingleThreadedExecutor()
+    executor = EventsExecutor()
     executor.add_node(node)
     out.put(("ready", wid, None))
-    with contextlib.suppress(_StopError):
-        executor.spin()
-    out.put(("data", wid, batch))
-    out.put(("done", wid, None))
-    node.destroy_node()
-    rclpy.shutdown()
+    unmatched = set(range(len(subs)))
+    next_ship = time.monotonic() + BATCH_PERIOD_S
+    next_check = 0.0
+    try:
+        while True:
+            executor.spin_once(timeout_sec=0.005)
+            t = time.monotonic()
+            if batch and (urgent[0] or t >= next_ship):
+                out.put(("data", wid, batch))
+                batch = []
+                urgent[0] = False
+            if t >= next_ship:
+                next_ship = t + BATCH_PERIOD_S
+            if t >= next_check:
+                next_check = t + 0.05
+                if stop.is_set() or os.getppid() != parent:
+                    break
+                matched = [i for i in unmatched if subs[i].get_publisher_count() > 0]
+                if matched:
+                    unmatched.difference_update(matched)
+                    out.put(("matched", wid, [first_index + i for i in matched]))
+        # what arrived before the stop was seen: take it, then ship the rest
+        for _ in range(1000):
+            before = len(batch)
+            executor.spin_once(timeout_sec=0.01)
+            if len(batch) == before:
+                break
+    finally:
+        out.put(("data", wid, batch))
+        out.put(("done", wid, None))
+        node.destroy_node()
+        rclpy.shutdown()
 
 
 # ----------------------------------------------------------------------------- writer process
@@ -110,6 +184,7 @@ class _Topic:
     spec: Topic
     stamped: bool
     is_clock: bool
+    account: StreamAccount | None = None  # streams with sample indices (INDEXED_TYPES)
 
 
 CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
@@ -155,17 +230,30 @@ class Recorder:
         config_spec = documented_topics(namespace)[resolve(namespace, "run_config")]
         if run_config is not None:  # the given configuration is written, not subscribed
             specs = [s for s in specs if s.name != config_spec.name]
-        # In sim mode only the plant's state and /clock carry rig time in their stamps; other
-        # headers (diagnostics) may hold wall time, so they are placed by the /clock stream.
-        rig_stamped = {resolve(namespace, "state")}
+        # In sim mode the plant's samples (state, blocks), flow progress and /clock carry rig time
+        # in their stamps; other headers (diagnostics) may hold wall time, so they are placed by
+        # the /clock stream.
+        rig_stamped = {resolve(namespace, n) for n in
+                       ("state", "state_block", "band_velocity_block", "flow_progress")}
         self.topics = [
             _Topic(
                 s,
                 has_leading_stamp(s.msgtype) and (s.name in rig_stamped or s.msgtype == CLOCK_TYPE),
                 s.msgtype == CLOCK_TYPE,
+                StreamAccount(s.name) if s.msgtype in INDEXED_TYPES else None,
             )
             for s in specs
         ]
+        self.namespace = namespace
+        self.state_block = resolve(namespace, "state_block")
+        self.progress_topic = resolve(namespace, "flow_progress")
+        self.plant_node = resolve(namespace, "plant")  # its FlowProgress announces what it published
+        self.participant = resolve(namespace, RECORDER_NODE)
+        self.progress: tuple[int, int] | None = None  # (segment, samples) last reported
+        self.progress_pub: object = None
+        self.progress_node: object = None
+        self.last_progress = 0.0
+        self.malformed: dict[str, int] = {}
         self.use_sim_time = use_sim_time
         self.flush_interval = flush_interval
         self.writer = BagWriter(output, run_config, round(flush_period * 1e9), flush_messages)
@@ -183,7 +271,7 @@ class Recorder:
         self.stop_event = mp.get_context("spawn").Event()
         self.procs: list[mp.Process] = []
 
-    def start_workers(self, timeout: float = 30.0) -> None:
+    def start_workers(self, timeout: float = 90.0) -> None:
         """Spawn the subscriber processes; return when all have created their subscriptions.
 
         BagError, naming the worker's topics, if one dies or is not ready within timeout s.
@@ -210,8 +298,8 @@ class Recorder:
                 kind = wid = payload = None
             if kind == "ready":
                 ready.add(wid)
-            elif kind == "data":
-                self._handle(payload)
+            else:
+                self._message(kind, payload)
             for wid, (proc, group) in enumerate(zip(self.procs, groups, strict=True)):
                 if wid in ready:
                     continue
@@ -223,6 +311,15 @@ class Recorder:
                     )
                 if time.monotonic() > deadline:
                     raise BagError(f"recorder worker {wid} ({names}) not ready after {timeout:g} s")
+
+    def _message(self, kind: str | None, payload: object) -> None:
+        """A worker's "data" batch or "matched" report (anything else is ignored)."""
+        if kind == "data":
+            self._handle(payload)  # type: ignore[arg-type]
+        elif kind == "matched":
+            names = {self.topics[self.index_map[i]].spec.name for i in payload}  # type: ignore[attr-defined]
+            if self.state_block in names and self.progress is None:
+                self.report_progress(0, 0)  # subscribed and matched: belt_drive may start
 
     def _log_time(self, topic: _Topic, recv: int, data: bytes, force: bool) -> int | None:
         if not self.use_sim_time:
@@ -249,6 +346,119 @@ class Recorder:
             if text is not None:
                 self.writer.set_run_config(text)
         self.writer.write(topic.spec.name, topic.spec.msgtype, t, data)
+        if topic.account is not None:
+            self._account(topic, data)
+        elif topic.spec.name == self.progress_topic:
+            self._announced(data)
+
+    def _account(self, topic: _Topic, data: bytes) -> None:
+        """Count the written message's samples; after a state_block, report flow progress."""
+        assert topic.account is not None
+        try:
+            span = sample_span(topic.spec.msgtype, data)
+        except ValueError:
+            self.malformed[topic.spec.name] = self.malformed.get(topic.spec.name, 0) + 1
+            return
+        topic.account.add(span.segment, span.first_index, span.count, span.stamp_ns, span.period_ns)
+        if topic.spec.name == self.state_block:
+            self.report_progress(span.segment, topic.account.taken(span.segment))
+
+    def _announced(self, data: bytes) -> None:
+        """A FlowProgress of the plant: the samples it has published (the state_block stream's tail)."""
+        account = next((t.account for t in self.topics if t.spec.name == self.state_block), None)
+        if account is None:
+            return
+        try:
+            msg = typestore().deserialize_cdr(data, PROGRESS_TYPE)
+        except Exception:  # a malformed message is counted, never fatal
+            self.malformed[self.progress_topic] = self.malformed.get(self.progress_topic, 0) + 1
+            return
+        if msg.participant == self.plant_node:
+            account.announce(int(msg.segment), int(msg.samples))
+
+    # ------------------------------------------------------------------ flow progress (sim)
+    def start_progress(self) -> None:
+        """Create the FlowProgress publisher (this process's node <namespace>/lubrig_recorder)."""
+        if not any(t.spec.name == self.state_block for t in self.topics):
+            return
+        import rclpy
+        from rclpy.signals import SignalHandlerOptions
+
+        from lubrig_ros.nodes.interfaces import message_class, qos_profile
+
+        rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node(RECORDER_NODE, namespace=self.namespace)
+        spec = documented_topics(self.namespace)[self.progress_topic]
+        self.progress_cls = message_class(spec.msgtype)
+        self.progress_pub = node.create_publisher(
+            self.progress_cls, self.progress_topic, qos_profile(spec.qos)
+        )
+        self.progress_node = node
+        self.participant = node.get_fully_qualified_name()
+
+    def report_progress(self, segment: int, samples: int) -> None:
+        """Publish FlowProgress(segment, samples) (once the state_block stream has a publisher)."""
+        if self.progress_pub is None:
+            return
+        self.progress = (segment, samples)
+        msg = self.progress_cls()
+        msg.participant, msg.segment, msg.samples = self.participant, segment, samples
+        t = self.newest_rig_ns
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(max(t, 0), 1_000_000_000)
+        self.progress_pub.publish(msg)  # type: ignore[attr-defined]
+        self.last_progress = time.monotonic()
+
+    def _heartbeat(self) -> None:
+        if self.progress is not None and time.monotonic() - self.last_progress >= HEARTBEAT_S:
+            self.report_progress(*self.progress)
+
+    def stop_progress(self) -> None:
+        """Destroy the progress node (and rclpy's context of this process)."""
+        if self.progress_node is None:
+            return
+        import rclpy
+
+        with contextlib.suppress(Exception):
+            self.progress_node.destroy_node()  # type: ignore[attr-defined]
+            rclpy.shutdown()
+        self.progress_node = self.progress_pub = None
+
+    @property
+    def newest_rig_ns(self) -> int:
+        """Rig time of the newest state_block sample written (0 before the first)."""
+        account = next((t.account for t in self.topics if t.spec.name == self.state_block), None)
+        seg = None if account is None else account.segments.get(account.newest_segment)
+        return 0 if seg is None or seg.last_time_ns is None else seg.last_time_ns  # announced only: 0
+
+    # ------------------------------------------------------------------ accounting results
+    @property
+    def accounts(self) -> dict[str, StreamAccount]:
+        """The accounts of the recorded sample streams, by topic (those that got messages)."""
+        return {t.spec.name: t.account for t in self.topics if t.account is not None and t.account.messages}
+
+    def behind(self) -> int:
+        """Samples the plant announced that are not written yet."""
+        return sum(a.behind() for a in self.accounts.values())
+
+    def problems(self) -> list[str]:
+        """One line per problem of every stream (gap, duplicate, out of order, malformed)."""
+        lines = [line for a in self.accounts.values() for line in a.problems()]
+        lines += [f"{name}: {n} malformed messages (no sample index read)"
+                  for name, n in self.malformed.items()]
+        return lines
+
+    def write_accounting(self) -> Path:
+        """<bag>/accounting.json: per-stream accounts and the problems (written atomically)."""
+        path = self.writer.path / ACCOUNTING_SIDECAR
+        data = {
+            "participant": self.participant,
+            "streams": {name: a.summary() for name, a in self.accounts.items()},
+            "malformed": self.malformed,
+            "problems": self.problems(),
+            "complete": not self.problems(),
+        }
+        write_text_atomic(path, json.dumps(data, indent=2) + "\n")
+        return path
 
     def _write_config(self, t: int) -> None:
         assert self.run_config is not None
@@ -283,15 +493,21 @@ class Recorder:
             self._write_config(time.time_ns())
             self.writer.flush()
         end = time.monotonic() + duration if duration else math.inf
-        while not should_stop[0] and time.monotonic() < end:
+        catch_up = math.inf
+        while time.monotonic() < min(end, catch_up):
+            if should_stop[0] and catch_up == math.inf:
+                catch_up = time.monotonic() + CATCH_UP_S  # take what the plant announced first
+            if should_stop[0] and not self.behind():
+                break
             try:
                 kind, _wid, payload = self.queue.get(timeout=0.05)
             except queue.Empty:
                 kind = ""
-            if kind == "data":
-                self._handle(payload)
+            if kind:
+                self._message(kind, payload)
             elif self.held:
                 self._handle([])
+            self._heartbeat()
             if time.monotonic() - self.writer.last_flush > self.flush_interval:
                 self.writer.flush()
             if any(not p.is_alive() for p in self.procs):
@@ -325,6 +541,7 @@ class Recorder:
         and `lubrig bag repair DIR` can retry.
         """
         self.stop_event.set()
+        self.stop_progress()
         for p in self.procs:
             p.join(timeout=3)
             if p.is_alive():
@@ -410,6 +627,7 @@ def run(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, on_signal)
     status = 0
     try:
+        recorder.start_progress()
         recorder.start_workers()
     except BagError:  # nothing recorded yet: one error line, exit 2 (run_script)
         with contextlib.suppress(BagError):
@@ -432,7 +650,16 @@ def run(args: argparse.Namespace) -> int:
             status = 1
     counts = ", ".join(f"{k}={v}" for k, v in recorder.writer.counts.items() if v)
     print(f"recorder: stopped; bag {output}: {counts}", flush=True)
-    return status
+    for name, account in recorder.accounts.items():
+        print(f"recorder: samples {name}: {account.samples} in {account.messages} messages, "
+              f"{account.missing} missing, {account.duplicates} duplicates, "
+              f"{account.out_of_order} out of order", flush=True)
+    with contextlib.suppress(OSError):
+        recorder.write_accounting()
+    problems = recorder.problems()
+    for line in problems:
+        print(f"recorder: error: incomplete recording: {line}", file=sys.stderr, flush=True)
+    return 1 if problems else status
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -2,8 +2,14 @@
 
 The whole bag is verified first (every chunk decompressed and CRC-checked, metadata.yaml
 consistent); a truncated or corrupted bag is refused with one error line before anything is
-published. Messages are published as recorded (serialized bytes, no re-encoding). With --clock,
-/clock is published from the bag's log times (and a recorded /clock topic is not replayed).
+published. Messages are published as recorded (serialized bytes, no re-encoding): blocks
+(RigStateBlock, BandVelocityBlock) as blocks, RigState per sample. With --clock, /clock is
+published from the bag's log times (and a recorded /clock topic is not replayed).
+
+A bag of the legacy layout (sensor_msgs/JointState on <ns>/state, recorded before
+lubrig_interfaces) is refused with one line when its state topic is selected: the current nodes
+subscribe to lubrig_interfaces/RigState there, so nothing would consume it (`lubrig report`
+still reads such bags; its other topics can be replayed with --topics).
 """
 
 from __future__ import annotations
@@ -19,6 +25,8 @@ from lubrig_ros.app.contract import DEFAULT_NAMESPACE, STREAM_QOS, documented_to
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.reader import check_bag, read_messages
 from lubrig_ros.nodes.script import run_script
+
+LEGACY_STATE = "sensor_msgs/msg/JointState"
 
 
 def build_parser(prog: str = "replay") -> argparse.ArgumentParser:
@@ -61,6 +69,15 @@ def run(args: argparse.Namespace) -> int:
         types = {n: types[n] for n in wanted}
     if args.clock:
         types.pop("/clock", None)
+    legacy = [name for name, msgtype in types.items() if msgtype == LEGACY_STATE and name.endswith("/state")]
+    if legacy:
+        others = [n for n in types if n not in legacy]
+        raise ValueError(
+            f"bag {str(args.bag)!r} has the legacy layout ({LEGACY_STATE} on {', '.join(legacy)}, "
+            "recorded before lubrig_interfaces): the current nodes read lubrig_interfaces/msg/RigState "
+            f"there, so it is not replayed; `lubrig report {args.bag}` still reads the bag"
+            + (f"; replay its other topics with --topics {' '.join(others)}" if others else "")
+        )
 
     import rclpy
     from rclpy.signals import SignalHandlerOptions

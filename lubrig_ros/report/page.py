@@ -8,7 +8,7 @@ from typing import Any
 from ..app.analysis import analyze_displacement, whole_record
 from ..app.rundir import prepare_output_dir
 from ..core.run import summarize
-from .frombag import trajectory_from_bag
+from .frombag import recording_summary, trajectory_from_bag
 from .html import write_html_page
 
 FIGURE_FILES = ("wavelet.png", "time_history.png", "phase.png", "friction_velocity.png", "mu_velocity.png")
@@ -30,6 +30,21 @@ def run_heading(summary: dict[str, Any]) -> str:
     if summary.get("convention") != "explicit":
         coupling = f"{summary.get('convention')} convention" + (f" ({coupling})" if coupling else "")
     return f"{name}, {coupling}"
+
+
+def _recording_lines(recording: dict[str, Any]) -> list[str]:
+    """The page's recording section: samples per stream, and every gap marked (issue 12)."""
+    streams = recording.get("streams", {})
+    if not streams:
+        return []
+    lines = ["## Recording", ""]
+    for name, s in streams.items():
+        mark = "complete" if s["complete"] else "**INCOMPLETE**"
+        lines.append(f"- `{name}`: {s['samples']} samples, {s['missing']} missing, "
+                     f"{s['duplicates']} duplicates, {s['out_of_order']} out of order: {mark}")
+        lines += [f"  - **gap**: {g['count']} samples from index {g['first_index']} of segment "
+                  f"{g['segment']} at rig time {g['rig_time_s']:.6f} s" for g in s["gaps"]]
+    return [*lines, ""]
 
 
 def markdown(summary: dict[str, Any], bag: Path) -> str:
@@ -59,6 +74,7 @@ def markdown(summary: dict[str, Any], bag: Path) -> str:
         "|---|---|",
         *[f"| {k} | {v} |" for k, v in rows],
         "",
+        *_recording_lines(summary.get("recording", {})),
         "## Wavelet power spectrum",
         "",
         "Morlet (ω0 = 6) power of x − mean, cone of influence hatched, 95 % significance against "
@@ -115,6 +131,7 @@ def write_report(bag: str | Path, out: str | Path, force: bool = False) -> Path:
     config, trajectory = trajectory_from_bag(bag)
     summary = summarize(trajectory, config)
     summary["source_bag"] = str(bag.resolve())
+    summary["recording"] = recording_summary(bag)  # gaps found from the samples' indices
     analysis = analyze_displacement(
         trajectory.time, trajectory.displacement, config.sample_rate, config.band.fundamental_hz,
         whole_record(),
