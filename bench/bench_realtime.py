@@ -1,12 +1,12 @@
-"""Benchmark of the nodes over real DDS: realtime deadline misses and latency; sim throughput.
+"""Benchmark of the nodes over real DDS: realtime deadline misses, latency, what a probe receives.
 
-    .venv/bin/python bench/bench_realtime.py [--duration 60] [--sim-duration 20] [--case 1]
+    .venv/bin/python bench/bench_realtime.py [--duration 60] [--priority 0]
 
 Realtime: plant + belt_drive (realtime, 1 kHz) + analysis for --duration s of wall time; the
 figures are the plant's own diagnostics (deadline misses: ticks finished more than one period
 after their deadline; latency: band message receive time → state publish time inside the plant).
-Sim: plant + belt_drive + analysis for --sim-duration s of rig time of --case; rig seconds per
-wall second (first band sample → run_complete) next to core.run.simulate on the same config.
+--priority sets realtime_priority (SCHED_FIFO) of plant and belt_drive: the probe's count shows
+what the rest of the machine still gets. Sim throughput: bench/bench_sim_rate.py.
 Runs on its own ROS_DOMAIN_ID (leased like a test's), discovery on localhost; the process
 harness is the tests' one (lubrig_testkit, installed by `make setup`).
 """
@@ -21,12 +21,8 @@ from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray
 from lubrig_testkit.harness import DomainLease, Probe, Processes, ros_env
-from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Bool
 
 from lubrig_interfaces.msg import RigState
-from lubrig_ros.core.presets import load_case
-from lubrig_ros.core.run import simulate
 from lubrig_ros.nodes import common
 
 
@@ -59,7 +55,7 @@ def bench_realtime(duration: float, tmp: Path, priority: int = 0) -> dict[str, s
 
         def analysis_up() -> bool:
             return any(
-                status.name.startswith("lubrig/analysis")
+                status.name.startswith("/lubrig/analysis:")
                 for array in probe.messages["/diagnostics"]
                 for status in array.status
             )
@@ -85,49 +81,9 @@ def bench_realtime(duration: float, tmp: Path, priority: int = 0) -> dict[str, s
         lease.close()
 
 
-def bench_sim(case: int, rig_seconds: float, tmp: Path) -> tuple[float, float]:
-    lease = DomainLease()
-    probe, procs = Probe(lease.domain), Processes(ros_env(lease.domain), tmp / "sim")
-    ns = common.DEFAULT_NAMESPACE
-    try:
-        probe.subscribe("/clock", Clock)
-        probe.subscribe(f"{ns}/run_complete", Bool, common.LATCHED_QOS)
-        procs.node("plant", case=case, duration=rig_seconds, publish_clock=True)
-        procs.node("belt_drive", case=case, duration=rig_seconds)
-        procs.node("analysis", case=case)
-        if not probe.wait_for(
-            lambda: any(m.data for m in probe.messages[f"{ns}/run_complete"]), 60 + 5 * rig_seconds
-        ):
-            raise RuntimeError("sim run did not complete:\n" + procs.log("plant"))
-        clock_times = [
-            t
-            for t, m in zip(probe.times["/clock"], probe.messages["/clock"], strict=True)
-            if m.clock.nanosec or m.clock.sec
-        ]
-        done = next(
-            t
-            for t, m in zip(
-                probe.times[f"{ns}/run_complete"], probe.messages[f"{ns}/run_complete"], strict=True
-            )
-            if m.data
-        )
-        node_rate = rig_seconds / (done - clock_times[0])
-    finally:
-        procs.stop_all()
-        probe.close()
-        lease.close()
-    config = load_case(case).with_overrides(duration=rig_seconds)
-    start = time.perf_counter()
-    simulate(config)
-    core_rate = rig_seconds / (time.perf_counter() - start)
-    return node_rate, core_rate
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=60.0, help="realtime run, s (default 60)")
-    parser.add_argument("--sim-duration", type=float, default=20.0, help="sim run, rig s (default 20)")
-    parser.add_argument("--case", type=int, default=1)
     parser.add_argument("--priority", type=int, default=0,
                         help="realtime_priority of plant and belt_drive (default 0, the nodes' default)")
     args = parser.parse_args()
@@ -156,11 +112,6 @@ def main() -> None:
             f" ({values.get('latency_samples')} samples)"
         )
         print(f"  state messages seen by a probe process: {values.get('probe_state_messages')}")
-        node_rate, core_rate = bench_sim(args.case, args.sim_duration, Path(tmp))
-        print(f"sim, case {args.case}, {args.sim_duration:g} rig s, plant + belt_drive + analysis:")
-        print(
-            f"  nodes: {node_rate:.2f} rig s per wall s; core.run.simulate: {core_rate:.1f} rig s per wall s"
-        )
 
 
 if __name__ == "__main__":

@@ -62,4 +62,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # `python -m lubrig_ros.cli.main`: run the imported module's main, so that the CommandError
+    # the subcommands raise (lubrig_ros.cli.main.CommandError) is the one caught, not __main__'s
+    from lubrig_ros.cli.main import main as _main
+
+    sys.exit(_main())

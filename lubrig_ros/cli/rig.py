@@ -41,6 +41,10 @@ from .progress import Progress
 
 NODES = ("plant", "belt_drive", "analysis")
 GRACE_S = 10.0
+#: The recorder, stopped last, may take the plant's announced tail (5 s), drain its workers and
+#: finalize the bag: on a loaded machine that took longer than GRACE_S (seen: SIGTERM just after
+#: it had written every sample). A guard against a hang, not an expected duration.
+RECORDER_GRACE_S = 40.0
 RECORDER_READY_S = 60.0
 
 
@@ -329,7 +333,7 @@ def run(args: argparse.Namespace) -> int:
         ordered = {n: p for n, p in procs.items() if n != "recorder"}
         codes = stop_all(ordered)
         if "recorder" in procs:
-            codes |= stop_all({"recorder": procs["recorder"]})
+            codes |= stop_all({"recorder": procs["recorder"]}, RECORDER_GRACE_S)
     bad = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT)}
     print(f"lubrig rig: run finished in {wall:.1f} s wall; results in {bag}")
     print(f"  run configuration: {run_config}")
