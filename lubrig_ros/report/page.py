@@ -63,12 +63,13 @@ def markdown(summary: dict[str, Any], bag: Path) -> str:
         ("stick fraction (2nd half)", f"{summary['stick_fraction']:.3f}"),
         ("spectral peaks (2nd half)", peaks),
     ]
+    streams = ", ".join(summary.get("recording", {}).get("streams", {})) or "the plant topics"
     lines = [
         f"# Run report: {run_heading(summary)}",
         "",
-        f"Recorded bag: `{bag}`. Rebuilt from the plant topics (/lubrig/state, "
-        "/lubrig/friction_coefficient, /lubrig/band_velocity) and the run configuration stored "
-        "in the bag (`config.yaml`). Numbers as `lubrig simulate` reports them (`summary.json`).",
+        f"Recorded bag: `{bag}`. Rebuilt from the plant's sample stream ({streams}) and the run "
+        "configuration stored in the bag (`config.yaml`). Numbers as `lubrig simulate` reports "
+        "them (`summary.json`).",
         "",
         "| quantity | value |",
         "|---|---|",
