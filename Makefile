@@ -66,7 +66,7 @@ test-fast: setup
 lint: setup
 	$(VENV)/bin/ruff check lubrig_ros test bench launch
 
-# mypy on core/ and app/ (settings in pyproject.toml [tool.mypy]); must report no issues.
+# mypy on the whole package (settings in pyproject.toml [tool.mypy]); must report no issues.
 typecheck: setup
 	$(VENV)/bin/mypy
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 import yaml
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -109,7 +110,7 @@ def find_mcap(bag: str | Path) -> Path:
 def cdr_string(data: bytes) -> str | None:
     """Text of a serialized std_msgs/msg/String, or None if it does not decode."""
     try:
-        msg = typestore().deserialize_cdr(data, "std_msgs/msg/String")
+        msg: Any = typestore().deserialize_cdr(data, "std_msgs/msg/String")
     except Exception:
         return None
     return str(msg.data)

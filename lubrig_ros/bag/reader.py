@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rosbags.rosbag2 import Reader
@@ -102,10 +103,8 @@ def check_bag(bag: str | Path) -> BagSummary:
     if not result.complete:
         problem = result.stop_reason or "; ".join(result.damaged_chunks)
         raise BagError(f"bag {str(bag)!r} is damaged: {problem}; run `lubrig bag repair {bag}`")
-    listed = {
-        t["topic_metadata"]["name"]: int(t["message_count"])
-        for t in meta.get("topics_with_message_count", [])  # type: ignore[union-attr]
-    }
+    entries: Any = meta.get("topics_with_message_count", [])
+    listed = {t["topic_metadata"]["name"]: int(t["message_count"]) for t in entries}
     found = {channels[c][0]: n for c, n in counts.items() if c in channels}
     if any(listed.get(name, 0) != n for name, n in found.items()) or set(listed) - set(found):
         raise BagError(
@@ -187,7 +186,7 @@ def _block_samples(msgtype: str, msg: object) -> dict[str, np.ndarray]:
 def _decode(msgtype: str, data: bytes) -> dict[str, object]:
     if msgtype == "std_msgs/msg/Float64" and len(data) >= 12 and data[1] == 1:
         return {"data": float64_value(data)}  # fast path; other encodings: rosbags below
-    msg = typestore().deserialize_cdr(data, msgtype)
+    msg: Any = typestore().deserialize_cdr(data, msgtype)
     if msgtype == RIG_STATE:
         out: dict[str, object] = {"stamp": _stamp_s(msg.header.stamp), "sample_index": int(msg.sample_index),
                                   "segment": int(msg.segment)}
@@ -225,8 +224,8 @@ def read_arrays(bag: str | Path, topics: Iterable[str] | None = None) -> dict[st
     for topic, msgtype, t, data in read_messages(bag, topics):
         types[topic] = msgtype
         if msgtype in BLOCK_FIELDS:
-            cols = _block_samples(msgtype, typestore().deserialize_cdr(data, msgtype))
-            blocks.setdefault(topic, []).append((t, cols))
+            samples = _block_samples(msgtype, typestore().deserialize_cdr(data, msgtype))
+            blocks.setdefault(topic, []).append((t, samples))
             continue
         times.setdefault(topic, []).append(t)
         cols = values.setdefault(topic, {})

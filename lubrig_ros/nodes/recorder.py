@@ -37,9 +37,10 @@ import queue
 import signal
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -93,7 +94,7 @@ def reader_qos(qos: QoS) -> QoS:
 
 
 
-def _worker(wid: int, specs: list[Topic], first_index: int, out: mp.Queue, stop: mp.Event) -> None:
+def _worker(wid: int, specs: list[Topic], first_index: int, out: Any, stop: Any) -> None:
     """Subscribe to specs (raw) and ship batches of (index, recv_ns, bytes) to out.
 
     Spun by rclpy's EventsExecutor with spin_once (its spin() fires no timer in this wheel and
@@ -117,7 +118,7 @@ def _worker(wid: int, specs: list[Topic], first_index: int, out: mp.Queue, stop:
     urgent = [False]
     now = time.time_ns
 
-    def make_cb(index: int, block: bool):
+    def make_cb(index: int, block: bool) -> Callable[[bytes], None]:
         if block:
             def cb_block(data: bytes) -> None:
                 batch.append((index, now(), data))
@@ -269,7 +270,7 @@ class Recorder:
         self.n_workers = max(1, min(workers, len(specs)))
         self.queue: mp.Queue = mp.get_context("spawn").Queue()
         self.stop_event = mp.get_context("spawn").Event()
-        self.procs: list[mp.Process] = []
+        self.procs: list[Any] = []  # spawn-context processes
 
     def start_workers(self, timeout: float = 90.0) -> None:
         """Spawn the subscriber processes; return when all have created their subscriptions.
@@ -295,7 +296,7 @@ class Recorder:
             try:
                 kind, wid, payload = self.queue.get(timeout=0.2)
             except queue.Empty:
-                kind = wid = payload = None
+                kind, wid, payload = None, -1, None
             if kind == "ready":
                 ready.add(wid)
             else:
@@ -369,7 +370,7 @@ class Recorder:
         if account is None:
             return
         try:
-            msg = typestore().deserialize_cdr(data, PROGRESS_TYPE)
+            msg: Any = typestore().deserialize_cdr(data, PROGRESS_TYPE)
         except Exception:  # a malformed message is counted, never fatal
             self.malformed[self.progress_topic] = self.malformed.get(self.progress_topic, 0) + 1
             return

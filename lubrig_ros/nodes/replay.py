@@ -20,6 +20,7 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, STREAM_QOS, documented_topics, resolve
 from lubrig_ros.bag.errors import BagError
@@ -95,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("lubrig_replay")
     docs = documented_topics(args.namespace)
-    pubs = {}
+    pubs: dict[str, Any] = {}
     for name, msgtype in types.items():
         spec = docs.get(name)  # QoS from the contract; topics outside it as sample streams
         qos = qos_profile(spec.qos if spec else STREAM_QOS)
