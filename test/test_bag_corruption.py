@@ -26,9 +26,9 @@ import textwrap
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 import pytest
 import yaml
+from lubrig_testkit.legacy import write_legacy_bag
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
 from mcap.records import Message
@@ -37,7 +37,6 @@ from rosbags.rosbag2 import Reader
 
 from lubrig_ros.bag import BagWriter
 from lubrig_ros.bag.verify import verify_bag
-from lubrig_ros.bag.writer import serialize_string, typestore
 
 DURATION = 1.0
 TIMEOUT = 120  # s for the whole child process: a guard against a hang, not a speed assertion
@@ -70,31 +69,7 @@ DRIVER = textwrap.dedent(
 
 def write_run_bag(path: Path) -> None:
     """A recorder-like bag of a short core run (what `lubrig report` reads)."""
-    from lubrig_ros.core.presets import load_case
-    from lubrig_ros.core.run import simulate
-
-    config = load_case(1).with_overrides(duration=DURATION)
-    traj = simulate(config)
-    ts = typestore()
-    js, hdr, stamp = (ts.types[n] for n in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header",
-                                            "builtin_interfaces/msg/Time"))
-    f64 = ts.types["std_msgs/msg/Float64"]
-    writer = BagWriter(path, run_config=config.to_yaml())
-    writer.write("/lubrig/run_config", "std_msgs/msg/String", 0, serialize_string(config.to_yaml()))
-    normal = config.rig.friction.normal_force
-    for k, t in enumerate(traj.time):
-        ns = round(float(t) * 1e9)
-        sec, nsec = divmod(ns, 10**9)
-        state = js(hdr(stamp(sec, nsec), ""), ["mass"], np.array([traj.displacement[k]]),
-                   np.array([traj.velocity[k]]), np.array([traj.friction_coefficient[k] * normal]))
-        writer.write("/lubrig/state", "sensor_msgs/msg/JointState", ns,
-                     ts.serialize_cdr(state, "sensor_msgs/msg/JointState"))
-        writer.write("/lubrig/friction_coefficient", "std_msgs/msg/Float64", ns,
-                     ts.serialize_cdr(f64(float(traj.friction_coefficient[k])), "std_msgs/msg/Float64"))
-        if k:
-            writer.write("/lubrig/band_velocity", "std_msgs/msg/Float64", ns,
-                         ts.serialize_cdr(f64(float(traj.band_velocity[k])), "std_msgs/msg/Float64"))
-    writer.close()
+    write_legacy_bag(path, DURATION)
 
 
 def _count_messages(chunk_record: bytes) -> int:

@@ -9,40 +9,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from lubrig_testkit.legacy import write_legacy_bag
 from matplotlib.image import imread
 
-from lubrig_ros.bag import BagWriter
-from lubrig_ros.bag.writer import serialize_string, typestore
-from lubrig_ros.core.presets import load_case
-from lubrig_ros.core.run import simulate, summarize
+from lubrig_ros.core.run import summarize
 from lubrig_ros.figures.timeseries import friction_velocity_figure, phase_figure
 from lubrig_ros.report import ReportError, trajectory_from_bag
 
 
 def _bag(path: Path, duration: float = 3.0, namespace: str = "/lubrig") -> tuple[object, object]:
-    config = load_case(1).with_overrides(duration=duration)
-    traj = simulate(config)
-    ts = typestore()
-    js, hdr, stamp = ts.types["sensor_msgs/msg/JointState"], ts.types["std_msgs/msg/Header"], ts.types[
-        "builtin_interfaces/msg/Time"]
-    f64 = ts.types["std_msgs/msg/Float64"]
-    writer = BagWriter(path, run_config=config.to_yaml())
-    writer.write(f"{namespace}/run_config", "std_msgs/msg/String", 0, serialize_string(config.to_yaml()))
-    normal = config.rig.friction.normal_force
-    for k, t in enumerate(traj.time):
-        ns = round(float(t) * 1e9)
-        sec, nsec = divmod(ns, 10**9)
-        state = js(hdr(stamp(sec, nsec), ""), ["mass"], np.array([traj.displacement[k]]),
-                   np.array([traj.velocity[k]]), np.array([traj.friction_coefficient[k] * normal]))
-        writer.write(f"{namespace}/state", "sensor_msgs/msg/JointState", ns,
-                     ts.serialize_cdr(state, "sensor_msgs/msg/JointState"))
-        writer.write(f"{namespace}/friction_coefficient", "std_msgs/msg/Float64", ns,
-                     ts.serialize_cdr(f64(float(traj.friction_coefficient[k])), "std_msgs/msg/Float64"))
-        if k:
-            writer.write(f"{namespace}/band_velocity", "std_msgs/msg/Float64", ns,
-                         ts.serialize_cdr(f64(float(traj.band_velocity[k])), "std_msgs/msg/Float64"))
-    writer.close()
-    return config, traj
+    return write_legacy_bag(path, duration, namespace)
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
