@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import resource
 import signal
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -162,10 +163,35 @@ def _reported_counts(output: str) -> dict[str, int]:
     return {topic: int(n) for topic, n in (pair.rsplit("=", 1) for pair in pairs)}
 
 
+@pytest.fixture
+def small_file_system(tmp_path: Path):
+    """A real tmpfs of LIMIT bytes mounted at tmp_path/fs (needs CAP_SYS_ADMIN; skipped otherwise)."""
+    mount = tmp_path / "fs"
+    mount.mkdir()
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={LIMIT}", "tmpfs", str(mount)],
+                         capture_output=True, text=True, check=False)
+    if res.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here: {res.stderr.strip()}")
+    try:
+        yield mount
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], capture_output=True, check=False)
+
+
 def test_full_disk_loses_at_most_the_flush_bound_and_counts_are_the_bag(procs, probe, tmp_path: Path) -> None:
+    """The file size capped (RLIMIT_FSIZE): EFBIG, the same OSError path as a full disk."""
+    _record_until_full(procs, probe, tmp_path, tmp_path / "bag", _file_size_cap(LIMIT), "File too large")
+
+
+def test_small_file_system_loses_at_most_the_flush_bound(procs, probe, tmp_path: Path,
+                                                        small_file_system: Path) -> None:
+    """A real small file system (tmpfs of LIMIT bytes): ENOSPC."""
+    _record_until_full(procs, probe, tmp_path, small_file_system / "bag", None, "No space left on device")
+
+
+def _record_until_full(procs, probe, tmp_path: Path, bag: Path, preexec, error_text: str) -> None:
     progress = _listen_progress(probe)
-    bag = tmp_path / "bag"
-    rec = procs.command("recorder", _recorder_argv(bag, _config(tmp_path)), preexec_fn=_file_size_cap(LIMIT))
+    rec = procs.command("recorder", _recorder_argv(bag, _config(tmp_path)), preexec_fn=preexec)
     rec.wait_for_output("recording", timeout=90)
     pub = _publisher(procs)
     assert rec.wait(timeout=240) == 1, rec.log()  # stops by itself on the write error
@@ -173,7 +199,7 @@ def test_full_disk_loses_at_most_the_flush_bound_and_counts_are_the_bag(procs, p
     pub.kill()
     mine = [line for line in rec.errors().splitlines() if line.startswith("recorder:")]
     assert "Traceback" not in rec.errors()
-    (error,) = [line for line in mine if "File too large" in line]
+    (error,) = [line for line in mine if error_text in line]
     unflushed = int(error.split(" messages not yet flushed are lost")[0].rsplit("(", 1)[1])
     assert (bag / "bag.mcap").stat().st_size <= LIMIT
 
