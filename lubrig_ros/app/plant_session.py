@@ -52,7 +52,7 @@ from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
 from ..core.run import integrator_for
 from .contract import MODES, RIG_FIELDS, friction_fields, plant_parameters
-from .diagnostics import Status
+from .diagnostics import Level, Status
 from .timing import DeadlineLoop, LatencyHistogram
 
 
@@ -77,6 +77,9 @@ RUNTIME_PARAMETERS: frozenset[str] = runtime_parameters("junction_kinetics")
 HARDWARE_ID = "lubrig_plant"
 #: Share of deadline misses above which the timing status is WARN.
 MISS_SHARE_WARN = 1e-3
+#: Sim: a run that has started, is neither paused nor complete, and got no band sample for this
+#: long is reported as stalled (timing status ERROR); back to ok when samples flow again.
+STALL_S = 1.0
 
 
 class PlantSample(NamedTuple):
@@ -439,6 +442,7 @@ class PlantSession:
                         f"(segment {self.segment})",
                     )
             if band.size:
+                self.latest_band_recv = now  # sim: for the stall report (diagnostics)
                 self._queue.append(band)
                 self._drain()
             return int(band.size)
@@ -637,21 +641,40 @@ class PlantSession:
             and (age is None or age > self.settings.stale_timeout)
         )
 
+    def stalled(self) -> float | None:
+        """Sim: seconds without a band sample while the run should progress (> STALL_S), else None."""
+        age = self.input_age()
+        if self.mode != "sim" or self.paused or self.complete or age is None or age <= STALL_S:
+            return None
+        return age
+
     def diagnostics(self) -> list[Status]:
         """The timing and band-input statuses; starts a new 'rejected since last report' count."""
         with self.lock:
+            stalled = self.stalled()
             p50, p99 = self.latencies.percentiles()
             samples = self.ticks if self.mode != "sim" else self.sample_index
             share = self.misses / samples if samples else 0.0
-            timing = Status(
-                name="timing",  # the node prefixes its fully qualified name
-                hardware_id=HARDWARE_ID,
-                level="warn" if share > MISS_SHARE_WARN else "ok",
-                message=(
+            level: Level
+            if stalled is not None:
+                level = "error"
+                message = (
+                    f"stalled: no band sample for {stalled:.1f} s at rig time "
+                    f"{self.integrator.time:.3f} s ({self.sample_index} of {self.total} samples); "
+                    "belt_drive waits for the plant or a required consumer (flow_progress)"
+                )
+            else:
+                level = "warn" if share > MISS_SHARE_WARN else "ok"
+                message = (
                     f"{self.misses} deadline misses in {samples} samples"
                     if self.mode != "sim"
                     else ("complete" if self.complete else "running")
-                ),
+                )
+            timing = Status(
+                name="timing",  # the node prefixes its fully qualified name
+                hardware_id=HARDWARE_ID,
+                level=level,
+                message=message,
                 values=(
                     ("mode", self.mode),
                     ("rig_time_s", f"{self.integrator.time:.6f}"),

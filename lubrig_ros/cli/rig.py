@@ -45,6 +45,9 @@ GRACE_S = 10.0
 #: finalize the bag: on a loaded machine that took longer than GRACE_S (seen: SIGTERM just after
 #: it had written every sample). A guard against a hang, not an expected duration.
 RECORDER_GRACE_S = 40.0
+#: Sim: end the run (non-zero) once the plant has reported it stalled this long without a break
+#: (a run that cannot progress; a loaded machine's pauses of a few seconds are not one).
+STALL_GIVE_UP_S = 15.0
 RECORDER_READY_S = 60.0
 
 
@@ -124,8 +127,13 @@ def _wait_complete(
     procs: dict[str, subprocess.Popen],
     namespace: str = DEFAULT_NAMESPACE,
     progress: Progress | None = None,
+    stall: list[str] | None = None,
 ) -> bool:
-    """Sim: wait for <ns>/run_complete = true (latched) from the plant (rig time from /clock)."""
+    """Sim: wait for <ns>/run_complete = true (latched) from the plant (rig time from /clock).
+
+    Gives up early when the plant has reported its run stalled (timing status ERROR) for
+    STALL_GIVE_UP_S without a break; the plant's line is appended to `stall`.
+    """
     import rclpy
     from rclpy.context import Context
     from rclpy.node import Node
@@ -149,6 +157,25 @@ def _wait_complete(
             Clock, "/clock", lambda m: progress.update(m.clock.sec + 1e-9 * m.clock.nanosec),
             qos_profile(contract.topic("/clock").qos),
         )
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+    timing = f"{contract.resolve(namespace, 'plant')}: timing"
+    stalled_since: list[float] = []
+    stall_text: list[str] = []
+
+    def on_diagnostics(array: DiagnosticArray) -> None:
+        for status in array.status:
+            if status.name != timing:
+                continue
+            if status.level == DiagnosticStatus.ERROR and status.message.startswith("stalled"):
+                stalled_since[:] = stalled_since or [time.monotonic()]
+                stall_text[:] = [status.message]
+            else:
+                stalled_since.clear()
+
+    node.create_subscription(
+        DiagnosticArray, "/diagnostics", on_diagnostics, qos_profile(contract.topic("/diagnostics").qos)
+    )
     from rclpy.executors import SingleThreadedExecutor
 
     executor = SingleThreadedExecutor(context=context)
@@ -156,6 +183,10 @@ def _wait_complete(
     try:
         while not done and time.monotonic() < deadline:
             if any(p.poll() is not None for p in procs.values()):
+                break
+            if stalled_since and time.monotonic() - stalled_since[0] >= STALL_GIVE_UP_S:
+                if stall is not None:
+                    stall.append(f"{timing}: {stall_text[0]}")
                 break
             executor.spin_once(timeout_sec=0.1)
     finally:
@@ -311,8 +342,11 @@ def run(args: argparse.Namespace) -> int:
         if mode == "sim":
             limit = args.timeout if args.timeout else max(60.0, 10.0 * config.duration)
             bar = Progress("lubrig rig", config.duration)
-            complete = _wait_complete(start + limit, procs, namespace, bar)
+            stall: list[str] = []
+            complete = _wait_complete(start + limit, procs, namespace, bar, stall)
             bar.finish()
+            if not complete and stall:
+                raise CommandError(f"sim run stalled for {STALL_GIVE_UP_S:g} s: {stall[0]}; see {logs}")
             if not complete:
                 dead = [n for n, p in procs.items() if p.poll() is not None]
                 why = f"process(es) {dead} exited" if dead else f"timeout after {limit:g} s"

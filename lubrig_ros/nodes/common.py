@@ -11,6 +11,7 @@ import contextlib
 import gc
 import math
 import os
+import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
@@ -188,6 +189,34 @@ def check_topic_namespace(node: Node, value: str) -> None:
         f"namespace ({namespace!r}); start the node with --ros-args -r __ns:={value} "
         "(launch: namespace=) instead"
     )
+
+
+class ProblemLog:
+    """Warn/error diagnostics also go to the node log (and /rosout), rate-limited.
+
+    A status is logged when it becomes a problem, when its problem text changes (numbers aside),
+    and at most every `every` seconds while it lasts; its recovery is logged once.
+    """
+
+    def __init__(self, node: Node, every: float = 10.0) -> None:
+        self.node, self.every = node, every
+        self.last: dict[str, tuple[str, float]] = {}
+
+    def log(self, statuses: list[Status]) -> None:
+        """Log the statuses that need a person's attention (see class docstring)."""
+        now = time.monotonic()
+        for status in statuses:
+            shape = "".join(c for c in status.message if not c.isdigit())
+            previous = self.last.get(status.name)
+            if status.level == "ok":
+                if previous is not None:
+                    self.node.get_logger().info(f"{status.name}: ok again ({status.message})")
+                    del self.last[status.name]
+                continue
+            if previous is None or previous[0] != shape or now - previous[1] >= self.every:
+                log = self.node.get_logger()
+                (log.error if status.level == "error" else log.warning)(f"{status.name}: {status.message}")
+                self.last[status.name] = (shape, now)
 
 
 def diagnostic_status(status: Status, node: Node) -> DiagnosticStatus:

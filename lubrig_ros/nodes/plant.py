@@ -129,6 +129,7 @@ class Plant(Node):
         create_service(self, "plant/pause", self._on_pause)
         self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
         self._stop = threading.Event()
+        self._log_problems = common.ProblemLog(self)  # warn/error statuses also to the log
         self._thread: threading.Thread | None = None
         if self.mode == "sim":
             self.create_timer(HEARTBEAT_S, self._heartbeat)
@@ -265,8 +266,10 @@ class Plant(Node):
     def _publish_diagnostics(self) -> None:
         array = DiagnosticArray()
         array.header.stamp = self.get_clock().now().to_msg()
-        array.status = [common.diagnostic_status(s, self) for s in self.session.diagnostics()]
+        statuses = self.session.diagnostics()
+        array.status = [common.diagnostic_status(s, self) for s in statuses]
         self.pub_diag.publish(array)
+        self._log_problems.log(statuses)
 
     def close(self) -> None:
         """Stop the loop thread."""
