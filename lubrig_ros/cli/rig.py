@@ -361,7 +361,7 @@ def run(args: argparse.Namespace) -> int:
         wall = time.monotonic() - start
     except KeyboardInterrupt:
         print("lubrig rig: interrupted, stopping the nodes", file=sys.stderr)
-        wall = math.nan
+        wall = math.nan  # interrupted: no run time to report, exit status 130
     finally:
         # nodes first, the recorder last so that it has everything before it closes the bag
         ordered = {n: p for n, p in procs.items() if n != "recorder"}
@@ -369,7 +369,10 @@ def run(args: argparse.Namespace) -> int:
         if "recorder" in procs:
             codes |= stop_all({"recorder": procs["recorder"]}, RECORDER_GRACE_S)
     bad = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT)}
-    print(f"lubrig rig: run finished in {wall:.1f} s wall; results in {bag}")
+    if math.isnan(wall):
+        print(f"lubrig rig: interrupted before the run ended; what was recorded is in {bag}")
+    else:
+        print(f"lubrig rig: run finished in {wall:.1f} s wall; results in {bag}")
     print(f"  run configuration: {run_config}")
     print(f"  node logs:         {logs}")
     if with_recorder:
@@ -383,7 +386,7 @@ def run(args: argparse.Namespace) -> int:
 
         page = write_report(bag / "bag", bag / "report", force=True)  # inside the checked run folder
         print(f"report: {page}")
-    return 0
+    return 130 if math.isnan(wall) else 0  # 128 + SIGINT: interrupted, as a shell reports it
 
 
 def _positive(text: str) -> float:
