@@ -14,9 +14,9 @@ offset and topic (the first one is what the CLI names):
 - metadata.yaml: the file name and the message counts per topic against the data section;
 - (full only) per-stream sample continuity: for RigState (sample_index, segment) and
   RigStateBlock / BandVelocityBlock (first_sample_index + n, segment) gaps, duplicates and
-  stamps going back; for Float64 / JointState / Clock streams (the old layout) log-time steps
-  against the sample period (the run configuration's sample_rate, else the median step) when
-  the log times are on that grid (rig time); receive-time log times are noted as unchecked.
+  stamps going back; for Float64 / JointState streams of one message per sample (contract
+  rate: output rate) log-time steps against the sample period (the run configuration's
+  sample_rate, else the median step) when the log times are on that grid (rig time); receive-time log times are noted as unchecked.
 
 ``continuity=False`` is the part ``lubrig report`` and ``lubrig replay`` run first (no message is
 decoded); ``full=False`` is cheaper still: record frames, chunk headers, footer, summary and
@@ -37,6 +37,7 @@ from pathlib import Path
 import yaml
 from backports import zstd
 
+from lubrig_ros.app import contract
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import RUN_CONFIG_KEY, bag_information, find_mcap
 
@@ -712,6 +713,19 @@ def _indexed(kind: str, data: bytes) -> tuple[int, int, int, int, float]:
     return segment, first, n, stamp, period
 
 
+def _per_sample(topic: str) -> bool:
+    """A contract topic with one message per sample (band, scalar outputs, a legacy state).
+
+    /clock (one per block plus a heartbeat), the analysis outputs and diagnostics are not sample
+    streams: their log-time spacing says nothing about loss.
+    """
+    try:
+        spec = contract.topic(topic.rsplit("/", 1)[-1])
+    except KeyError:
+        return False
+    return spec.rate == contract.OUTPUT_RATE
+
+
 def _continuity(v: Verification, st: _State, meta: dict[str, object] | None) -> None:
     period = _sample_period_s(meta)
     for cid, (sid, topic, _enc, _m) in sorted(st.channels.items()):
@@ -721,7 +735,7 @@ def _continuity(v: Verification, st: _State, meta: dict[str, object] | None) -> 
         v.streams[topic] = rep
         if msgtype in INDEXED_TYPES:
             _by_index(v, rep, INDEXED_TYPES[msgtype], items)
-        elif msgtype in SPACED_TYPES:
+        elif msgtype in SPACED_TYPES and _per_sample(topic):
             _by_spacing(v, rep, items, period)
         else:
             rep.method = "not a sample stream"

@@ -11,6 +11,7 @@ import contextlib
 import gc
 import math
 import os
+import signal
 import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
@@ -292,6 +293,10 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
         if rclpy.ok():
             raise
     finally:
+        # stopping: a second SIGINT (a terminal's Ctrl-C reaches the whole process group, then the
+        # launcher sends its own) must not interrupt the clean-up with a KeyboardInterrupt
+        with contextlib.suppress(ValueError):  # not the main thread: nothing to change
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
         if node is not None:
             close = getattr(node, "close", None)
             if close is not None:
