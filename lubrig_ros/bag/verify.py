@@ -16,7 +16,8 @@ offset and topic (the first one is what the CLI names):
   RigStateBlock / BandVelocityBlock (first_sample_index + n, segment) gaps, duplicates and
   stamps going back; for Float64 / JointState streams of one message per sample (contract
   rate: output rate) log-time steps against the sample period (the run configuration's
-  sample_rate, else the median step) when the log times are on that grid (rig time); receive-time log times are noted as unchecked.
+  sample_rate, else the median step) when the log times are on that grid (rig time);
+  receive-time log times are noted as unchecked.
 
 ``continuity=False`` is the part ``lubrig report`` and ``lubrig replay`` run first (no message is
 decoded); ``full=False`` is cheaper still: record frames, chunk headers, footer, summary and
