@@ -159,7 +159,7 @@ def refuse_damaged(bag: str | Path, command: str) -> None:
     if v.structural:
         first = v.structural[0]
         if "does not exist" in first.text or "not a bag" in first.text:
-            raise BagError(f"{command}: {first.text}")
+            raise BagError(first.text)  # the command's own error line names the command
         raise BagError(f"{v.verdict()}; {command} refuses it: run `lubrig bag repair {bag}` first")
 
 

@@ -45,6 +45,7 @@ class Progress:
         self.interval_s = interval_s
         self.started = time.monotonic()
         self._last = -float("inf")
+        self._pending: tuple[float, str] | None = None
         self._width = 0
 
     def line(self, done_s: float, detail: str = "") -> str:
@@ -63,8 +64,9 @@ class Progress:
             return
         now = time.monotonic()
         if not force and now - self._last < self.interval_s:
+            self._pending = (done_s, detail)  # shown by the next update or by finish()
             return
-        self._last = now
+        self._last, self._pending = now, None
         text = self.line(done_s, detail)
         pad = max(0, self._width - len(text))
         self._width = len(text)
@@ -72,7 +74,9 @@ class Progress:
         self.stream.flush()
 
     def finish(self) -> None:
-        """End the status line (a newline) so later output starts on its own line."""
+        """Show the last state if it was throttled, then end the line (a newline)."""
+        if self.enabled and self._pending is not None:
+            self.update(*self._pending, force=True)
         if self.enabled and self._width:
             self.stream.write("\n")
             self.stream.flush()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..app.rundir import prepare_output_dir
 from ..bag.errors import BagError
 from ..bag.verify import refuse_damaged
 from ..report import write_report
@@ -14,11 +15,12 @@ from .common import add_force
 def run(args: argparse.Namespace) -> int:
     """Entry of `lubrig report`."""
     bag = Path(args.bag)
+    out = Path(args.out) if args.out else bag.parent / "report"
+    prepare_output_dir(out, args.force)  # refuses a non-empty --out first; removes nothing
     try:  # the cheap part of `lubrig bag check` first: a damaged bag is refused in one line
         refuse_damaged(bag, "lubrig report")
     except BagError as exc:
         raise ValueError(str(exc)) from None
-    out = Path(args.out) if args.out else bag.parent / "report"
     page = write_report(bag, out, force=args.force)
     print(f"report: {page}")
     return 0
