@@ -11,9 +11,12 @@ import yaml
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
+from lubrig_interfaces.msg import FlowProgress
+from lubrig_ros.app import contract
 from lubrig_ros.bag.reader import read_messages
 from lubrig_ros.bag.writer import typestore
 from lubrig_ros.nodes import common
+from lubrig_ros.nodes.interfaces import qos_profile
 
 NS = "/lubrig"
 
@@ -24,10 +27,16 @@ def _damping(text: str) -> float:
 
 def test_reset_with_new_parameters_republishes_run_config_and_the_bag_keeps_both(procs, probe, tmp_path):
     probe.subscribe(f"{NS}/run_config", String, common.LATCHED_QOS)
+    probe.subscribe(f"{NS}/flow_progress", FlowProgress, qos_profile(contract.BLOCK_QOS))
     bag = tmp_path / "bag"
-    rec = procs.module("lubrig_ros.nodes.recorder", "-o", str(bag), "--topics", "run_config")
+    rec = procs.module("lubrig_ros.nodes.recorder", "-o", str(bag), "--topics", "run_config", "state_block")
     rec.wait_for_output("recording", timeout=90)
-    procs.node("plant", case=1, duration=30.0)
+    # the plant announces itself only once the recorder has subscribed, and the recorder reports
+    # once it has matched the plant: after both, the recorder holds the first run_config (latched)
+    procs.node("plant", case=1, duration=30.0, wait_for_subscriber="lubrig_recorder")
+    participants = lambda: {m.participant for m in probe.messages[f"{NS}/flow_progress"]}  # noqa: E731
+    assert probe.wait_for(lambda: {f"{NS}/plant", f"{NS}/lubrig_recorder"} <= participants(), 120), (
+        participants(), procs.logs())
     assert probe.wait_for(lambda: probe.messages[f"{NS}/run_config"], 60), procs.logs()
     first = _damping(probe.messages[f"{NS}/run_config"][-1].data)
     assert first != 0.05
