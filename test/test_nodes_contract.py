@@ -33,4 +33,4 @@ def test_nodes_declare_the_contract_parameters(procs, probe):
             assert d.description.startswith(spec.description), (node, d.name)
             assert d.read_only == spec.read_only, (node, d.name)
     codes = procs.stop_all()
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (codes, procs.logs())

@@ -72,4 +72,4 @@ def test_descriptors_hold_the_contract_ranges_and_runtime_updates_are_checked(pr
     assert "convention='sideways' is not valid; expected one of" in result.reason, result.reason
     assert probe.set_parameter("lubrig/plant", "rtol", 1e-9).successful  # in range: accepted
     codes = procs.stop_all()
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (codes, procs.logs())

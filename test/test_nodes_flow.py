@@ -71,7 +71,7 @@ def test_two_sim_rigs_on_one_domain_stay_apart(procs, probe):
     assert clock and max(clock) == rigs["/rigA"][1]
     owners = {i.node_namespace for i in probe.node.get_publishers_info_by_topic("/clock")}
     assert owners <= {"/rigA"}, owners
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (codes, procs.logs())
 
 
 def test_a_slow_required_consumer_loses_nothing(procs, probe):
@@ -95,7 +95,7 @@ def test_a_slow_required_consumer_loses_nothing(procs, probe):
     assert got["displacement"].size == n + 1
     for name in FIELDS:
         assert np.array_equal(got[name], getattr(ref, name)), name
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (codes, procs.logs())
 
 
 def test_a_reset_starts_a_new_segment_that_completes(procs, probe):
@@ -125,4 +125,4 @@ def test_a_reset_starts_a_new_segment_that_completes(procs, probe):
     second = _segment(blocks, 1)  # the whole run again from t = 0
     for name in FIELDS:
         assert np.array_equal(second[name], getattr(ref, name)), name
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (codes, procs.logs())

@@ -80,7 +80,7 @@ def test_nodes_in_a_namespace_with_a_relative_remap(procs, probe):
     assert np.array_equal(np.concatenate([b.displacement for b in blocks]), ref.displacement)
     band = np.concatenate([b.band_velocity for b in probe.messages[BAND]])
     assert np.array_equal(band, ref.band_velocity[1:])
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (codes, procs.logs())
 
 
 def test_topic_namespace_other_than_the_node_namespace_is_refused(ros_env):

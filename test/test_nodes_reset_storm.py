@@ -75,4 +75,4 @@ def test_fifty_resets_and_pauses_leave_a_run_that_completes(procs, probe):
         x = cols["displacement"]
         assert np.array_equal(x, ref[: x.size]), segment  # every segment: the run from t = 0
     assert segments[resets]["displacement"].size == n
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (codes, procs.logs())

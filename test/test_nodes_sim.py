@@ -113,4 +113,4 @@ def test_sim_case1_equals_core_simulate(procs, probe):
     clock = [m.clock.sec + 1e-9 * m.clock.nanosec for m in probe.messages["/clock"]]
     assert clock and max(clock) == DURATION
     assert "case01" in probe.messages[f"{ns}/run_config"][0].data
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (codes, procs.logs())

@@ -128,4 +128,4 @@ def test_plant_node_runs_a_stribeck_configuration(tmp_path, stribeck, procs, pro
     assert "friction law stribeck" in procs.log("plant")
     x = np.concatenate([b.displacement for b in blocks])
     assert np.array_equal(x, simulate(stribeck).displacement)  # bit-identical, sample for sample
-    assert all(code == 0 for code in codes.values()), codes
+    assert all(code == 0 for code in codes.values()), (codes, procs.logs())
