@@ -129,6 +129,11 @@ def test_sigkill_at_a_random_moment_loses_at_most_the_flush_bound(procs, probe, 
     rec.popen.send_signal(signal.SIGKILL)  # the writer process only, as a crash would
     rec.kill()  # then its worker processes
     written = _settled(progress)
+    # the plant (paced on the recorder) published at least what was written: wait until the
+    # probe, which is not paced, has heard that from it (beside two CPU hogs it lagged behind)
+    wait_until(lambda: _written(progress, PLANT) >= written, 60, "the plant's progress heard",
+               every=0.05)
+    published = _written(progress, PLANT)
     pub.kill()
     assert not (bag / "metadata.yaml").exists()
 
@@ -137,7 +142,6 @@ def test_sigkill_at_a_random_moment_loses_at_most_the_flush_bound(procs, probe, 
     assert not verify_bag(tmp_path / "repaired").structural
     firsts, values, _counts = _blocks_in(tmp_path / "repaired")
     kept = _gap_free_prefix(firsts, values)
-    published = _written(progress, PLANT)
     lost = written - kept
     print(f"seed {seed}: killed at {written} samples written ({published} published), {kept} in the "
           f"bag, lost {lost} ({lost / RATE:.3f} s of rig time); bound {BOUND}; repair: {report.damage}")
