@@ -9,6 +9,7 @@ setup could deliver) it receives the samples. Needs CAP_NET_ADMIN and `ip`; skip
 from __future__ import annotations
 
 import os
+import random
 import shutil
 import subprocess
 import sys
@@ -22,7 +23,6 @@ from lubrig_ros.app.discovery import discovery_environment
 
 pytestmark = pytest.mark.ros
 
-HOST, PEER = "10.213.7.1", "10.213.7.2"
 SECONDS = 10.0  # the subscriber's listening time; the intruder publishes from before until after it
 
 ATTACKER = textwrap.dedent(
@@ -58,12 +58,21 @@ def _ip(*args: str) -> None:
     subprocess.run(["ip", *args], check=True, capture_output=True, timeout=10)
 
 
+def _free_subnet() -> int:
+    """A 10.213.X.0/24 no interface of this host uses (a killed run may leave its veth behind)."""
+    used = subprocess.run(["ip", "-o", "addr"], capture_output=True, text=True, check=False).stdout
+    free = [x for x in range(1, 255) if f"10.213.{x}." not in used]
+    return random.choice(free)
+
+
 @pytest.fixture
-def other_host() -> Iterator[str]:
-    """A network namespace on a veth link to this one; yields its name."""
+def other_host() -> Iterator[tuple[str, str]]:
+    """A network namespace on a veth link to this one; yields (its name, this host's address)."""
     if shutil.which("ip") is None:
         pytest.skip("no `ip` command: cannot build a second network")
     name = f"lubrig{uuid.uuid4().hex[:6]}"
+    subnet = _free_subnet()
+    host, peer = f"10.213.{subnet}.1", f"10.213.{subnet}.2"
     host_if, peer_if = f"{name}h", f"{name}p"
     try:
         _ip("netns", "add", name)
@@ -72,23 +81,24 @@ def other_host() -> Iterator[str]:
     try:
         _ip("link", "add", host_if, "type", "veth", "peer", "name", peer_if)
         _ip("link", "set", peer_if, "netns", name)
-        _ip("addr", "add", f"{HOST}/24", "dev", host_if)
+        _ip("addr", "add", f"{host}/24", "dev", host_if)
         _ip("link", "set", host_if, "up")
-        _ip("netns", "exec", name, "ip", "addr", "add", f"{PEER}/24", "dev", peer_if)
+        _ip("netns", "exec", name, "ip", "addr", "add", f"{peer}/24", "dev", peer_if)
         _ip("netns", "exec", name, "ip", "link", "set", peer_if, "up")
         _ip("netns", "exec", name, "ip", "link", "set", "lo", "up")
-        yield name
+        yield name, host
     finally:
         subprocess.run(["ip", "link", "del", host_if], capture_output=True, timeout=10)
         subprocess.run(["ip", "netns", "del", name], capture_output=True, timeout=10)
 
 
-def _received(netns: str, domain: int, network: bool) -> int:
+def _received(other: tuple[str, str], domain: int, network: bool) -> int:
+    netns, host = other
     rig_env = discovery_environment(os.environ, network=network).env
     rig_env["ROS_DOMAIN_ID"] = str(domain)
     intruder_env = {k: v for k, v in os.environ.items() if not k.startswith(("ROS_", "FASTDDS_"))}
     intruder_env.update(
-        ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="SUBNET", ROS_STATIC_PEERS=HOST
+        ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="SUBNET", ROS_STATIC_PEERS=host
     )
     victim = subprocess.Popen(
         [sys.executable, "-c", VICTIM, str(SECONDS)], env=rig_env, stdout=subprocess.PIPE, text=True
