@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import signal
 import subprocess
-import sys
 import time
 
 import psutil
 import pytest
+from lubrig_testkit.cli import start_long_rig
 
 from lubrig_ros.cli.rig import STALL_GIVE_UP_S
 
@@ -35,20 +35,10 @@ def _recorder(launcher: subprocess.Popen, bag: str) -> psutil.Process | None:
 
 def test_a_stalled_sim_run_ends_lubrig_rig_with_the_stall_line(ros_env, tmp_path):
     run = tmp_path / "run"
-    launcher = subprocess.Popen(
-        [sys.executable, "-m", "lubrig_ros.cli.main", "rig", "--case", "1", "--duration", "600",
-         "--run-dir", str(run), "--no-report"],
-        env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )
+    launcher = start_long_rig(ros_env, run)
     try:
         plant_log = run / "logs" / "plant.log"
         deadline = time.monotonic() + 180
-        # the run is under way once the plant has integrated blocks (its state on the log/bag grows)
-        while time.monotonic() < deadline and not (
-            plant_log.exists() and "plant: mode=sim" in plant_log.read_text()
-        ):
-            assert launcher.poll() is None, launcher.communicate()
-            time.sleep(0.2)
         recorder = None
         while time.monotonic() < deadline and recorder is None:
             recorder = _recorder(launcher, str(run / "bag"))

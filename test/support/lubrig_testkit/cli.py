@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import io
 import subprocess
+from pathlib import Path
 
 
 def lubrig(*args: str) -> subprocess.CompletedProcess[str]:
@@ -23,3 +24,26 @@ def lubrig(*args: str) -> subprocess.CompletedProcess[str]:
         except SystemExit as exc:  # argparse errors and --help
             code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     return subprocess.CompletedProcess(["lubrig", *args], code, out.getvalue(), err.getvalue())
+
+
+def start_long_rig(env: dict[str, str], run: Path, new_session: bool = False) -> subprocess.Popen[str]:
+    """`lubrig rig --case 1 --duration 600 --run-dir run --no-report` as a process (pipes for output).
+
+    Returns once the plant has started (its log says so); AssertionError if the launcher ends or
+    nothing starts within 180 s (a guard against a hang).
+    """
+    import sys
+    import time
+
+    launcher = subprocess.Popen(
+        [sys.executable, "-m", "lubrig_ros.cli.main", "rig", "--case", "1", "--duration", "600",
+         "--run-dir", str(run), "--no-report"],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=new_session,
+    )
+    plant_log = run / "logs" / "plant.log"
+    deadline = time.monotonic() + 180
+    while not (plant_log.exists() and "plant: mode=sim" in plant_log.read_text()):
+        assert launcher.poll() is None, launcher.communicate()
+        assert time.monotonic() < deadline, "the plant did not start"
+        time.sleep(0.2)
+    return launcher
