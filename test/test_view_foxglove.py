@@ -221,7 +221,7 @@ def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path):
     assert len(states) >= 20
     assert all(math.isfinite(v) for s in states for v in _numbers(s))
     _assert_decimated([_stamp_ns(s) for s in states], 50.0)  # the view's default for state
-    # Ctrl-C: the launcher stops the nodes and the view, and exits 0
-    assert rig.stop(signal.SIGINT, 120) == 0, rig.log()
+    # Ctrl-C: the launcher stops the nodes and the view, and exits 130 (interrupted, as a shell says)
+    assert rig.stop(signal.SIGINT, 120) == 130, rig.log()
     assert "interrupted, stopping the nodes" in rig.errors()
     assert "view: stopped" in view_log.read_text()

@@ -15,7 +15,8 @@ acknowledged them (reliable delivery; the tests' way to need no assumption about
 ``<namespace>/plant`` reporting its own FlowProgress after every block. With ``--consumer FQN``
 (e.g. ``/lubrig/lubrig_recorder``) it is paced like belt_drive: it waits for the consumer's first
 FlowProgress and never runs more than ``--flow-window`` samples ahead of the consumer's reported
-progress; at the end it waits until the consumer has reported every sample.
+progress; at the end it waits until the consumer has reported every sample. Paced, it also writes
+``published N`` to stderr after every block: what it published, even when it is killed stalled.
 
 ``--skip K ...``: sample indices never published (the gap tests): per sample, state has no
 message for K; with blocks, the block holding K is not published.
@@ -204,6 +205,8 @@ def _publish_blocks(args: argparse.Namespace, node: object, pubs: dict, executor
         _stamp(progress, stamp)
         progress_pub.publish(progress)
         counts[progress_pub.topic_name] += 1
+        if executor is not None:  # what was published, for a test that kills this paced plant
+            print(f"published {first + size}", file=sys.stderr, flush=True)
         if args.flow_control:
             for pub in pubs.values():
                 while not pub.wait_for_all_acked(Duration(seconds=1)):
