@@ -64,6 +64,10 @@ def main() -> int:
             pub = procs.run_module(
                 "lubrig_testkit.synthetic", "publish", "--rate", str(args.rate), "--samples",
                 str(samples), *(["--scalars"] if args.scalars else []), "--wait-subscribers", "120",
+                # after matching, let discovery finish on the recorder's side too, as a recorded
+                # realtime `lubrig rig` does (belt_drive's start_delay 1.5 s): at 0.5 s a quiet-
+                # machine run lost its first 571 samples while the analysis node was starting
+                "--settle", "2",
                 timeout=args.seconds * 4 + 180,
             )
             wall = time.perf_counter() - t0

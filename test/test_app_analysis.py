@@ -17,9 +17,9 @@ from lubrig_ros.app.analysis import (
     analyze_displacement,
     whole_record,
 )
-from lubrig_ros.core.integrator import Trajectory
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate, summarize
+from lubrig_ros.core.trajectory import Trajectory
 from lubrig_ros.core.wavelet import cwt, dominant_components, fourier_factor
 
 

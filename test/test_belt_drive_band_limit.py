@@ -11,8 +11,7 @@ import subprocess
 
 from lubrig_testkit.harness import BIN
 
-from lubrig_ros.app.plant_session import band_range_problem
-from lubrig_ros.core.profiles import profile_from_dict
+from lubrig_ros.core.profiles import band_range_problem, profile_from_dict
 
 
 def test_band_range_problem_names_value_time_and_limit():

@@ -23,10 +23,10 @@ from lubrig_ros.app.plant_session import (
     config_from,
     parameter_defaults,
 )
-from lubrig_ros.core.integrator import Trajectory
 from lubrig_ros.core.params import ParameterError
 from lubrig_ros.core.presets import default_config, load_case
 from lubrig_ros.core.run import band_samples, simulate
+from lubrig_ros.core.trajectory import Trajectory
 
 DURATION = 0.3  # s: 300 samples at 1 kHz
 

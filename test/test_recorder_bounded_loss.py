@@ -209,7 +209,6 @@ def test_small_file_system_loses_at_most_the_flush_bound(procs, probe, tmp_path:
 
 
 def _record_until_full(procs, probe, tmp_path: Path, bag: Path, preexec, error_text: str) -> None:
-    progress = _listen_progress(probe)
     rec = procs.command("recorder", _recorder_argv(bag, _config(tmp_path)), preexec_fn=preexec)
     rec.wait_for_output("recording", timeout=90)
     pub = _publisher(procs)

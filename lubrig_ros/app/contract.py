@@ -24,7 +24,7 @@ from dataclasses import dataclass, fields, replace
 from functools import cache
 from typing import Any, Literal
 
-from ..core.friction_laws import DEFAULT_LAW, law_named
+from ..core.friction_laws import DEFAULT_LAW, law_parameters
 from ..core.params import CONVENTIONS, RIG_RANGES, ParameterError
 
 DEFAULT_NAMESPACE = "/lubrig"
@@ -452,7 +452,7 @@ def friction_fields(law: str = DEFAULT_LAW) -> tuple[str, ...]:
 
     ParameterError naming the valid laws for an unknown one.
     """
-    return tuple(f.name for f in fields(law_named(law).parameters))
+    return tuple(f.name for f in fields(law_parameters(law)))
 
 
 #: The default (junction-kinetics) law's fields.

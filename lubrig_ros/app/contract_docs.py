@@ -91,11 +91,11 @@ def friction_law_table() -> str:
     """The plant's friction.<field> parameters of every built-in friction law, with defaults."""
     from dataclasses import fields
 
-    from ..core.friction_laws import BUILTIN_LAWS, law_named
+    from ..core.friction_laws import BUILTIN_LAWS, law_parameters
 
     rows = ["| `friction.law` | `friction.<field>` parameters (default) |", "|---|---|"]
     for law in BUILTIN_LAWS:
-        kind = law_named(law).parameters
+        kind = law_parameters(law)
         defaults = {f.name: f.default for f in fields(kind)}
         cells = []
         for p in contract.friction_parameters(law):

@@ -46,11 +46,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..core.friction_laws import law_named
-from ..core.integrator import RigIntegrator, Trajectory, concatenate
+from ..core.friction_laws import law_parameters
+from ..core.integrator import RigIntegrator
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
 from ..core.run import integrator_for
+from ..core.trajectory import Trajectory, concatenate
 from .contract import MODES, RIG_FIELDS, friction_fields, plant_parameters
 from .diagnostics import Level, Status
 from .timing import DeadlineLoop, LatencyHistogram
@@ -166,7 +167,7 @@ def parameter_defaults(base: RunConfig, law: str | None = None) -> dict[str, Any
     if law == law_of(base):
         friction = asdict(base.rig.friction)
     else:
-        friction = asdict(replace(law_named(law).parameters(), normal_force=base.rig.normal_force))
+        friction = asdict(replace(law_parameters(law)(), normal_force=base.rig.normal_force))
     data["rig"]["friction"] = {"law": law, **friction}
     out: dict[str, Any] = {}
     for p in plant_parameters(law):
@@ -206,33 +207,6 @@ def config_from(base: RunConfig, values: Mapping[str, Any]) -> RunConfig:
         {n: value(n) for n in ("duration", "sample_rate", "rtol", "initial_perturbation")}
     )
     return from_mapping(data)
-
-
-def band_range_problem(
-    band: Callable[[np.ndarray], np.ndarray], sample_rate: float, duration: float, limit: float
-) -> str | None:
-    """Why a band profile cannot run on a plant accepting |v_band| <= limit, or None if it can.
-
-    The profile is evaluated at every sample time k / sample_rate of the run (k = 0 … N; at most
-    10^6 evenly spread times for very long runs): a non-finite or too large value would be
-    rejected by the plant sample after sample (sim: the run stalls). The reason names the
-    largest |v_band|, when it occurs and the limit.
-    """
-    n = max(1, min(round(duration * sample_rate), 1_000_000))
-    times = np.linspace(0.0, duration, n + 1)
-    values = np.asarray(band(times), dtype=float)
-    bad = ~np.isfinite(values)
-    if bad.any():
-        t = float(times[np.argmax(bad)])
-        return f"the profile gives a non-finite band velocity at t = {t:g} s"
-    i = int(np.argmax(np.abs(values)))
-    if abs(values[i]) > limit:
-        return (
-            f"the profile reaches |v_band| = {abs(values[i]):g} m/s at t = {float(times[i]):g} s, above "
-            f"the plant's band_velocity_limit {limit:g} m/s (the plant would reject those samples "
-            f"and the run would stall); keep |v_band| <= {limit:g} m/s"
-        )
-    return None
 
 
 def _nothing(*_args: Any) -> None:

@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from ..core.integrator import Trajectory
 from ..core.presets import RunConfig
+from ..core.trajectory import Trajectory
 from .fileio import write_text_atomic
 
 TIMESERIES = "timeseries.csv"

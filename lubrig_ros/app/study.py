@@ -18,11 +18,11 @@ import numpy as np
 
 from ..core import criteria
 from ..core.friction import friction_coefficient, friction_minimum, friction_peak, stick_velocity
-from ..core.integrator import Trajectory
 from ..core.params import RigParameters
 from ..core.presets import RunConfig
 from ..core.profiles import RegularCycle
 from ..core.stability import critical_damping_ratio, unstable_intervals
+from ..core.trajectory import Trajectory
 
 #: Damping ratios up to this count as "any (realistic) damping" in the stability statements.
 REALISTIC_ZETA = 0.1

@@ -315,7 +315,8 @@ def run(args: argparse.Namespace) -> int:
                     stdout=log,
                     stderr=subprocess.STDOUT,
                 )
-            _wait_recorder(procs["recorder"], logs / "recorder.log")
+            if mode != "sim":  # realtime: nothing paces the nodes on the recorder, so it comes first
+                _wait_recorder(procs["recorder"], logs / "recorder.log")
         if args.view is not None:  # live view for Foxglove (lubrig view), up before the nodes publish
             with open(logs / "view.log", "w") as log:
                 procs["view"] = subprocess.Popen(
@@ -332,6 +333,10 @@ def run(args: argparse.Namespace) -> int:
                     stdout=log,
                     stderr=subprocess.STDOUT,
                 )
+        if with_recorder and mode == "sim":
+            # sim: plant and belt_drive wait for the recorder's subscriptions and flow_progress, so
+            # it starts beside them (start-up is CPU-bound: imports of four processes on 2 cores)
+            _wait_recorder(procs["recorder"], logs / "recorder.log")
         domain = env.get("ROS_DOMAIN_ID", "0")
         print(
             f"lubrig rig: {config.name} ({mode}, {config.duration:g} s) on ROS_DOMAIN_ID {domain}, "

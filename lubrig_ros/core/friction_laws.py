@@ -10,7 +10,9 @@ A friction law is one module (see docs/extending.md) holding
   (v = 0 included, where a law may return an infinite slope); ``p`` is ``pack(params)``;
 * optional **landmarks**: the friction peak (end of the rising zone 1, the stick threshold) and the
   minimum (start of the rising zone 3), or None when the law has none with these parameters;
-* one line in :data:`BUILTIN_LAWS` (its registration), or a call to :func:`register_law`.
+* one line in :data:`BUILTIN_LAWS` (its registration), or a call to :func:`register_law`; a
+  built-in law's parameter dataclass is declared in core.params and named in
+  :data:`BUILTIN_PARAMETERS`, so that :func:`law_parameters` finds it without numba.
 
 Vectorized μ(v) and dμ/dv come with :class:`KernelLaw` (the kernel looped over an array through the
 one compiled adapter, core.kernels.evaluate_law), so a law only writes its scalar kernel.
@@ -38,6 +40,13 @@ DEFAULT_LAW = "junction_kinetics"
 BUILTIN_LAWS: dict[str, str] = {
     "junction_kinetics": "lubrig_ros.core.junction",
     "stribeck": "lubrig_ros.core.stribeck",
+}
+#: Where each built-in law's parameter dataclass lives ("module:name"), apart from its kernel:
+#: the topic contract, the parameter descriptors and configuration loading need only the
+#: parameters, and a law's module imports numba (about 1 s of every node's start-up).
+BUILTIN_PARAMETERS: dict[str, str] = {
+    "junction_kinetics": "lubrig_ros.core.params:FrictionParameters",
+    "stribeck": "lubrig_ros.core.params:StribeckParameters",
 }
 
 
@@ -218,6 +227,18 @@ def law_named(name: str) -> FrictionLaw:
         return _REGISTRY[name]
     except (KeyError, TypeError):
         raise ParameterError(f"friction law={name!r} is not valid; expected one of {law_names()}") from None
+
+
+def law_parameters(name: str) -> type[Any]:
+    """The parameter dataclass of law `name`, without importing a built-in law's kernel module.
+
+    ParameterError naming the valid laws for an unknown one.
+    """
+    if name not in _REGISTRY and name in BUILTIN_PARAMETERS:
+        module, attribute = BUILTIN_PARAMETERS[name].split(":")
+        kind: type[Any] = getattr(importlib.import_module(module), attribute)
+        return kind
+    return law_named(name).parameters
 
 
 def law_for(params: Any) -> FrictionLaw:

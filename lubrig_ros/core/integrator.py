@@ -25,38 +25,11 @@ import numpy as np
 from .friction_laws import law_for
 from .kernels import _A, _A2, _C, _E, OK, specialize
 from .params import RigParameters
+from .trajectory import Trajectory
 
 
 class IntegrationError(RuntimeError):
     """The integrator could not meet its tolerance (step size collapsed)."""
-
-
-@dataclass
-class Trajectory:
-    """Uniformly sampled rig response (SI units; relative velocity per the run's convention)."""
-
-    time: np.ndarray  # s
-    displacement: np.ndarray  # x, m
-    velocity: np.ndarray  # ẋ, m/s
-    friction_coefficient: np.ndarray  # μ(v_rel)
-    band_velocity: np.ndarray  # m/s
-    relative_velocity: np.ndarray  # v_band − γ ẋ, m/s
-
-    COLUMNS = (
-        ("time", "time_s"),
-        ("displacement", "displacement_m"),
-        ("velocity", "velocity_m_s"),
-        ("friction_coefficient", "friction_coefficient"),
-        ("band_velocity", "band_velocity_m_s"),
-        ("relative_velocity", "relative_velocity_m_s"),
-    )
-
-    def __len__(self) -> int:
-        return int(self.time.size)
-
-    def as_columns(self) -> dict[str, np.ndarray]:
-        """Arrays keyed by their CSV column names (with units)."""
-        return {column: getattr(self, name) for name, column in self.COLUMNS}
 
 
 @dataclass
@@ -197,10 +170,3 @@ class RigIntegrator:
             band_velocity=band,
             relative_velocity=relative,
         )
-
-
-def concatenate(parts: list[Trajectory]) -> Trajectory:
-    """Join consecutive trajectories."""
-    return Trajectory(
-        **{name: np.concatenate([getattr(p, name) for p in parts]) for name, _ in Trajectory.COLUMNS}
-    )

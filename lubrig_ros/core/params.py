@@ -10,7 +10,7 @@ import math
 from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from typing import Any, ClassVar, Literal
 
-from .friction_laws import DEFAULT_LAW, law_named
+from .friction_laws import DEFAULT_LAW, law_parameters
 from .validation import ParameterError, _check_finite, _check_positive, _check_range
 
 __all__ = [
@@ -22,6 +22,7 @@ __all__ = [
     "FrictionParameters",
     "ParameterError",
     "RigParameters",
+    "StribeckParameters",
     "_check_finite",
     "_check_positive",
     "_check_range",
@@ -103,6 +104,36 @@ class FrictionParameters:
     def as_array(self) -> tuple[float, ...]:
         """Parameters in the fixed order the compiled kernels expect."""
         return tuple(getattr(self, f.name) for f in fields(self))
+
+
+@dataclass(frozen=True)
+class StribeckParameters:
+    """Parameters of the Stribeck law (core/stribeck.py; SI; fields in this order are its kernel's p)."""
+
+    law: ClassVar[str] = "stribeck"
+
+    static_coefficient: float = 0.16  # μ_s, ≥ 0
+    kinetic_coefficient: float = 0.006  # μ_c, ≥ 0
+    stribeck_velocity: float = 2e-9  # v_s, m/s, > 0
+    stribeck_exponent: float = 0.5  # δ, in (0, 10]
+    viscous_coefficient: float = 1400.0  # μ_v, s/m, ≥ 0
+    regularization_velocity: float = 1e-12  # v_r, m/s, > 0
+    normal_force: float = 1e-3  # N, N, > 0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("static_coefficient", "kinetic_coefficient", "viscous_coefficient"):
+                number = _check_finite(f.name, value)
+                if number < 0.0:
+                    raise ParameterError(f"{f.name}={value!r} must be >= 0")
+            elif f.name == "stribeck_exponent":
+                number = _check_finite(f.name, value)
+                if not 0.0 < number <= 10.0:
+                    raise ParameterError(f"{f.name}={value!r} is outside the valid range (0, 10]")
+            else:
+                number = _check_positive(f.name, value)
+            object.__setattr__(self, f.name, float(number))
 
 
 def convention_coupling(convention: str, natural_frequency: float) -> float:
@@ -297,7 +328,7 @@ def friction_from_dict(data: dict[str, Any]) -> Any:
             raise ParameterError(f"unknown friction parameter(s) {sorted(unknown)}; valid: {sorted(known)}")
         friction = FrictionParameters(**data)
         return friction if area is None else friction.with_contact_area(area)
-    kind = law_named(law).parameters
+    kind = law_parameters(law)
     known = [f.name for f in fields(kind)]
     unknown = set(data) - set(known)
     if unknown:

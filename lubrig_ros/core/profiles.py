@@ -454,3 +454,30 @@ class ProfileParameters:
         profile = _from_node_values(cls, staged[kind], self.initial)
         self._values, self.kind, self.profile = staged, kind, profile
         return profile
+
+
+def band_range_problem(
+    band: Callable[[np.ndarray], np.ndarray], sample_rate: float, duration: float, limit: float
+) -> str | None:
+    """Why a band profile cannot run on a plant accepting |v_band| <= limit, or None if it can.
+
+    The profile is evaluated at every sample time k / sample_rate of the run (k = 0 … N; at most
+    10^6 evenly spread times for very long runs): a non-finite or too large value would be
+    rejected by the plant sample after sample (sim: the run stalls). The reason names the
+    largest |v_band|, when it occurs and the limit.
+    """
+    n = max(1, min(round(duration * sample_rate), 1_000_000))
+    times = np.linspace(0.0, duration, n + 1)
+    values = np.asarray(band(times), dtype=float)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        t = float(times[np.argmax(bad)])
+        return f"the profile gives a non-finite band velocity at t = {t:g} s"
+    i = int(np.argmax(np.abs(values)))
+    if abs(values[i]) > limit:
+        return (
+            f"the profile reaches |v_band| = {abs(values[i]):g} m/s at t = {float(times[i]):g} s, above "
+            f"the plant's band_velocity_limit {limit:g} m/s (the plant would reject those samples "
+            f"and the run would stall); keep |v_band| <= {limit:g} m/s"
+        )
+    return None

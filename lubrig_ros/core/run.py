@@ -7,8 +7,9 @@ from typing import Any
 import numpy as np
 
 from .friction import stick_velocity_or_none
-from .integrator import RigIntegrator, Trajectory, concatenate
+from .integrator import RigIntegrator
 from .presets import RunConfig
+from .trajectory import Trajectory, concatenate
 
 
 def integrator_for(config: RunConfig) -> RigIntegrator:

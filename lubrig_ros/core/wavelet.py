@@ -15,7 +15,6 @@ from typing import Any
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.signal import find_peaks
 from scipy.special import chdtri
 
 #: Morlet wave number (nondimensional frequency) used by the study and by Torrence & Compo.
@@ -426,6 +425,8 @@ def dominant_components(
     spectrum = np.zeros(result.scales.size)
     spectrum[usable] = (result.power * mask).sum(axis=1)[usable] / counts[usable]
     padded = np.concatenate(([0.0], spectrum, [0.0]))  # let edge scales count as peaks
+    from scipy.signal import find_peaks  # here: importing scipy.signal costs ~1 s, only this needs it
+
     peaks, _ = find_peaks(padded)
     peaks = peaks - 1
     peaks = peaks[usable[peaks]]

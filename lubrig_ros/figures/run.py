@@ -7,8 +7,8 @@ from typing import Any
 
 from ..app import rundir
 from ..app.analysis import WaveletAnalysis
-from ..core.integrator import Trajectory
 from ..core.presets import RunConfig
+from ..core.trajectory import Trajectory
 from . import style
 from .timeseries import FIGURES, write_run_figures
 from .wavelet import analysis_figure

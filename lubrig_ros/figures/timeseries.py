@@ -18,8 +18,8 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import LogLocator, NullFormatter, NullLocator
 
 from ..core.friction import friction_coefficient, friction_landmarks
-from ..core.integrator import Trajectory
 from ..core.params import CONVENTIONS, RigParameters
+from ..core.trajectory import Trajectory
 from . import style
 
 #: Points of the trajectory drawn at most in the μ–v figure (evenly strided beyond).

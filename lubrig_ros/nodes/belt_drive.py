@@ -31,10 +31,9 @@ from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
 from ..app import cdr
 from ..app.contract import BELT_DRIVE_PARAMETERS, flow_window_problem
 from ..app.flow import FlowGate, qualified_name
-from ..app.plant_session import band_range_problem
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
-from ..core.profiles import BandProfile, ProfileParameters, profile_kinds, profile_to_dict
+from ..core.profiles import BandProfile, ProfileParameters, band_range_problem, profile_kinds, profile_to_dict
 from . import common
 from .interfaces import create_publisher, create_subscription
 

@@ -1,6 +1,9 @@
 """`recorder` node: record the rig's topics into a rosbag2 bag (MCAP, zstd chunks).
 
-Subscriptions are spread over worker processes (multiprocessing, spawn). Each worker runs a real
+Subscriptions are spread over worker processes (multiprocessing, forkserver: the server imports
+rclpy and this module once, each worker is forked from it, so three workers cost one import,
+about 0.8 s of CPU each at start-up otherwise; nothing of ROS is initialized in the server,
+so forking it is safe). Each worker runs a real
 rclpy node with raw subscriptions (serialized CDR bytes, no deserialization) spun by rclpy's
 EventsExecutor in a spin_once loop, and ships (topic index, receive time, bytes) batches to this
 process, the only writer of the bag (block messages at once, others every 20 ms).
@@ -92,6 +95,13 @@ def reader_qos(qos: QoS) -> QoS:
         return qos
     return replace(qos, depth=max(qos.depth, READER_DEPTH))
 
+
+
+def _context() -> Any:
+    """The multiprocessing context of the workers: a fork server that has imported what they need."""
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(["rclpy", "rclpy.experimental", "lubrig_ros.nodes.interfaces", __name__])
+    return ctx
 
 
 def _worker(wid: int, specs: list[Topic], first_index: int, out: Any, stop: Any) -> None:
@@ -268,16 +278,16 @@ class Recorder:
         self.clock = SimClock()
         self.held: list[tuple[int, int, bytes]] = []
         self.n_workers = max(1, min(workers, len(specs)))
-        self.queue: mp.Queue = mp.get_context("spawn").Queue()
-        self.stop_event = mp.get_context("spawn").Event()
-        self.procs: list[Any] = []  # spawn-context processes
+        self.queue: mp.Queue = _context().Queue()
+        self.stop_event = _context().Event()
+        self.procs: list[Any] = []  # forkserver-context processes
 
     def start_workers(self, timeout: float = 90.0) -> None:
         """Spawn the subscriber processes; return when all have created their subscriptions.
 
         BagError, naming the worker's topics, if one dies or is not ready within timeout s.
         """
-        ctx = mp.get_context("spawn")
+        ctx = _context()
         groups = [list(range(i, len(self.topics), self.n_workers)) for i in range(self.n_workers)]
         self.index_map: list[int] = []
         for wid, group in enumerate(groups):

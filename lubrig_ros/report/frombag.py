@@ -20,9 +20,9 @@ import yaml
 from ..app.accounting import StreamAccount
 from ..app.contract import DEFAULT_NAMESPACE, resolve, validate_namespace
 from ..bag import BagError, TopicArrays, bag_info, read_arrays
-from ..core.integrator import Trajectory
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
+from ..core.trajectory import Trajectory
 
 #: Contract names (relative to the rig namespace, /lubrig by default) of the topics read.
 STATE, STATE_BLOCK, FRICTION, BAND = "state", "state_block", "friction_coefficient", "band_velocity"

@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from ..app.analysis import DEFAULT_POLICY, AnalysisError, analyze_displacement
-from ..core.integrator import Trajectory
 from ..core.presets import RunConfig, from_mapping
 from ..core.run import simulate, summarize
 from ..core.stability import linear_stability
+from ..core.trajectory import Trajectory
 from .spec import Point
 
 #: summarize() keys copied into the table unchanged (so a sweep point equals a direct run exactly).

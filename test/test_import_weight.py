@@ -1,0 +1,47 @@
+"""Start-up weight (issue 12): what a node process imports before it can take part in a run.
+
+A rig run starts five Python processes on 2 cores at once, so every heavy import is paid in the
+start-up of the run: numba (about 1 s of CPU, through the friction-law modules) and scipy.signal
+(about 1 s, through find_peaks) were imported by every node when the topic contract pulled in the
+default law's module. Each case runs a fresh interpreter and checks sys.modules.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from lubrig_ros.core.friction_laws import BUILTIN_LAWS, law_named, law_parameters
+
+# module -> packages it must not import (the plant needs numba: it integrates)
+LIGHT = {
+    "lubrig_ros.app.contract": ("numba", "scipy"),
+    "lubrig_ros.core.presets": ("numba", "scipy"),
+    "lubrig_ros.nodes.belt_drive": ("numba", "scipy"),
+    "lubrig_ros.nodes.recorder": ("numba", "scipy"),
+    "lubrig_ros.nodes.analysis": ("numba", "scipy.signal"),
+    "lubrig_ros.cli.rig": ("numba", "scipy"),
+}
+
+
+@pytest.mark.parametrize("module", sorted(LIGHT))
+def test_module_does_not_import_heavy_packages(module: str) -> None:
+    code = f"import sys, {module}; print(' '.join(p for p in {LIGHT[module]!r} if p in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "", f"{module} imports {out.stdout.strip()}"
+
+
+@pytest.mark.parametrize("name", sorted(BUILTIN_LAWS))
+def test_law_parameters_are_the_registered_laws(name: str) -> None:
+    """The light lookup (BUILTIN_PARAMETERS) names the same dataclass the law registers."""
+    assert law_parameters(name) is law_named(name).parameters
+
+
+def test_law_parameters_names_the_valid_laws_for_an_unknown_one() -> None:
+    from lubrig_ros.core.params import ParameterError
+
+    with pytest.raises(ParameterError, match="'coulomb' is not valid; expected one of"):
+        law_parameters("coulomb")
