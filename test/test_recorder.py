@@ -163,3 +163,23 @@ def test_worker_dying_before_ready_is_one_error_line(procs, ros_env, tmp_path: P
     assert ours == [ours[0]] and "worker 0 (/lubrig/state) exited with status" in ours[0], res.stderr
     assert "not ready after" not in res.stderr
     assert "Traceback" not in res.stderr.split("recorder:")[-1] and "queue.Empty" not in res.stderr
+
+
+def test_sigint_while_the_workers_start_gives_a_finalized_empty_bag(procs, tmp_path: Path) -> None:
+    """Ctrl-C at once (before the workers are ready, on a loaded machine): no wait for them.
+
+    The recorder stops, exit 0, and leaves a finalized bag that verifies (no message but the
+    stored run configuration); it says which of the two moments the stop came at.
+    """
+    from lubrig_ros.bag.verify import verify_bag
+
+    bag = tmp_path / "bag"
+    rec = procs.module("lubrig_ros.nodes.recorder", "-o", str(bag), "--use-sim-time")
+    wait_until(lambda: (bag / "bag.mcap").exists(), 90, "the bag file created")
+    assert rec.stop(signal.SIGINT, timeout=60) == 0, rec.log()
+    out = rec.output()
+    assert "stop requested while the workers were starting" in out or "recording" in out, out
+    assert "recorder: stopped; bag" in out and "Traceback" not in rec.errors(), rec.log()
+    assert (bag / "metadata.yaml").exists()
+    result = verify_bag(bag)
+    assert not result.structural and not result.problems, result.problems

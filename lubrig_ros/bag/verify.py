@@ -551,15 +551,18 @@ def _check_summary(v: Verification, buf: mmap.mmap, size: int, data_end: int, st
             try:
                 if op == OP_SCHEMA:
                     sid, schema = _schema(b)
-                    if not v.full:  # the data section's definitions are inside the chunks
+                    if not v.full or sid not in st.schemas:
+                        # not scanned (the definitions are inside the chunks), or defined in the
+                        # summary only: the writer puts a definition into the data section with
+                        # its first message, so a topic without messages (an empty bag) has none
                         st.schemas.setdefault(sid, schema)
-                    elif st.schemas.get(sid) != schema:
+                    elif st.schemas[sid] != schema:
                         v.add(f"summary schema {sid} ({schema[0]}) differs from the data section", off)
                 elif op == OP_CHANNEL:
                     cid, ch = _channel(b)
-                    if not v.full:
+                    if not v.full or cid not in st.channels:  # as for schemas
                         st.channels.setdefault(cid, ch)
-                    elif st.channels.get(cid) != ch:
+                    elif st.channels[cid] != ch:
                         v.add(f"summary channel {cid} differs from the data section", off, ch[1])
                 elif op == OP_STATISTICS:
                     stats_seen = True

@@ -282,10 +282,12 @@ class Recorder:
         self.stop_event = _context().Event()
         self.procs: list[Any] = []  # forkserver-context processes
 
-    def start_workers(self, timeout: float = 90.0) -> None:
-        """Spawn the subscriber processes; return when all have created their subscriptions.
+    def start_workers(self, timeout: float = 90.0, should_stop: Sequence[bool] = (False,)) -> bool:
+        """Spawn the subscriber processes; True once all have created their subscriptions.
 
-        BagError, naming the worker's topics, if one dies or is not ready within timeout s.
+        False at once if should_stop[0] becomes true meanwhile (a Ctrl-C while a loaded machine is
+        still starting the workers: the stop must not wait for them). BagError, naming the
+        worker's topics, if one dies or is not ready within timeout s.
         """
         ctx = _context()
         groups = [list(range(i, len(self.topics), self.n_workers)) for i in range(self.n_workers)]
@@ -303,6 +305,8 @@ class Recorder:
         ready: set[int] = set()
         deadline = time.monotonic() + timeout
         while len(ready) < len(self.procs):
+            if should_stop[0]:
+                return False
             try:
                 kind, wid, payload = self.queue.get(timeout=0.2)
             except queue.Empty:
@@ -322,6 +326,7 @@ class Recorder:
                     )
                 if time.monotonic() > deadline:
                     raise BagError(f"recorder worker {wid} ({names}) not ready after {timeout:g} s")
+        return True
 
     def _message(self, kind: str | None, payload: object) -> None:
         """A worker's "data" batch or "matched" report (anything else is ignored)."""
@@ -625,30 +630,34 @@ def run(args: argparse.Namespace) -> int:
         except yaml.YAMLError as exc:
             raise ValueError(f"--config {str(args.config)!r} is not valid YAML: {exc}") from exc
     output = args.output or Path(time.strftime("lubrig_%Y%m%d_%H%M%S"))
-    recorder = Recorder(
-        output, specs, args.workers or auto_workers(specs), run_config, args.use_sim_time,
-        args.flush_interval, args.namespace, args.flush_period, args.flush_messages,
-    )
     should_stop = [False]
 
     def on_signal(_signum: int, _frame: object) -> None:
         should_stop[0] = True
 
+    # before the bag exists: a Ctrl-C while it is being created must still leave it finalized
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
+    recorder = Recorder(
+        output, specs, args.workers or auto_workers(specs), run_config, args.use_sim_time,
+        args.flush_interval, args.namespace, args.flush_period, args.flush_messages,
+    )
     status = 0
     try:
         recorder.start_progress()
-        recorder.start_workers()
+        started = recorder.start_workers(should_stop=should_stop)
     except BagError:  # nothing recorded yet: one error line, exit 2 (run_script)
         with contextlib.suppress(BagError):
             recorder.shutdown()
         raise
     try:
-        print(
-            f"recorder: recording {len(specs)} topics with {len(recorder.procs)} workers to {output}",
-            flush=True,
-        )
+        if started:
+            print(
+                f"recorder: recording {len(specs)} topics with {len(recorder.procs)} workers to {output}",
+                flush=True,
+            )
+        else:
+            print("recorder: stop requested while the workers were starting", flush=True)
         recorder.run(should_stop, args.duration)
     except BagError as exc:
         print(f"recorder: error: {exc}; recording stopped", file=sys.stderr, flush=True)
