@@ -269,6 +269,16 @@ def finite(value: float) -> bool:
     return isinstance(value, float | int) and math.isfinite(value)
 
 
+def _stopping(wait: float) -> bool:
+    """True once the rclpy context is shut down, polling up to `wait` s."""
+    end = time.monotonic() + wait
+    while rclpy.ok():
+        if time.monotonic() >= end:
+            return False
+        time.sleep(0.01)
+    return True
+
+
 def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     """rclpy.init, build the node, spin until SIGINT/SIGTERM, destroy, shut down; exit status."""
     rclpy.init(args=args)
@@ -289,8 +299,10 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
     except RuntimeError:
         # After SIGINT/SIGTERM rclpy shuts the context down under a running executor; a take on a
         # subscription whose handle is already gone then raises a RuntimeError ("Unable to convert
-        # call argument"), which is part of stopping, not a failure. Anything else is re-raised.
-        if rclpy.ok():
+        # call argument"), which is part of stopping, not a failure. The shutdown may still be in
+        # flight when the error comes (rclpy.ok() still true for a moment), so give it a moment;
+        # anything else is re-raised.
+        if not _stopping(0.5):
             raise
     finally:
         # stopping: a second SIGINT (a terminal's Ctrl-C reaches the whole process group, then the
