@@ -22,6 +22,7 @@ LIGHT = {
     "lubrig_ros.nodes.belt_drive": ("numba", "scipy"),
     "lubrig_ros.nodes.recorder": ("numba", "scipy"),
     "lubrig_ros.nodes.analysis": ("numba", "scipy.signal"),
+    "lubrig_ros.core.online": ("numba", "scipy.signal"),
     "lubrig_ros.cli.rig": ("numba", "scipy"),
 }
 
@@ -45,3 +46,22 @@ def test_law_parameters_names_the_valid_laws_for_an_unknown_one() -> None:
 
     with pytest.raises(ParameterError, match="'coulomb' is not valid; expected one of"):
         law_parameters("coulomb")
+
+
+def test_local_maxima_are_find_peaks() -> None:
+    """core.wavelet.local_maxima (no scipy.signal import) finds what scipy.signal.find_peaks finds.
+
+    Random arrays of 0-40 values, half of them small integers so that flat tops (plateaus, of
+    even and odd length, at the ends too) are common.
+    """
+    import numpy as np
+    from scipy.signal import find_peaks
+
+    from lubrig_ros.core.wavelet import local_maxima
+
+    rng = np.random.default_rng(12)
+    for trial in range(5000):
+        n = int(rng.integers(0, 41))
+        x = rng.integers(0, 4, n).astype(float) if trial % 2 else rng.random(n)
+        assert np.array_equal(local_maxima(x), find_peaks(x)[0]), x
+    assert local_maxima(np.array([0.0, 1.0, 1.0, 1.0, 1.0, 0.0])).tolist() == [2]
