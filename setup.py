@@ -32,7 +32,8 @@ setup(
     entry_points={
         "console_scripts": [
             "lubrig = lubrig_ros.cli.main:main",
-            *[f"{node} = lubrig_ros.nodes.{node}:main" for node in NODES],
+            # lubrig_ros.nodes.entry: a Ctrl-C during the imports ends the node without a traceback
+            *[f"{node} = lubrig_ros.nodes.entry:{node}" for node in NODES],
         ],
     },
 )
