@@ -11,7 +11,9 @@ reported separately; next to core.run.simulate's own rate on the same configurat
 are of the whole `lubrig rig` process. Also without the recorder (`--no-recorder`). On a shared,
 loaded machine the start-up varies by seconds from run to run, which swamps the difference of
 the whole-command times; the run phase (belt_drive's first band block to the plant's "run
-complete", from the node logs' ROS time stamps) is printed too, and its marginal rate.
+complete", from the node logs' ROS time stamps) is printed too, and its marginal rate; and per
+run the start-up (command start -> the first band block) and the shutdown (run complete -> exit)
+on their own, from the same stamps (system clock in both modes).
 
 Part 2 (--blocks): plant + belt_drive + a probe process that is a required consumer of the flow
 control (it takes every state block and reports flow_progress, like the recorder), for each
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -47,18 +50,29 @@ def run_phase(out: Path) -> float:
     return _log_time(logs / "plant.log", "run complete") - start
 
 
-def rig_wall(case: int, duration: float, out: Path, record: bool) -> float:
-    """Wall seconds of one `lubrig rig` command (report skipped)."""
+def rig_wall(case: int, duration: float, out: Path, record: bool) -> tuple[float, float, float]:
+    """Wall seconds of one `lubrig rig` command (report skipped), and its start and end (epoch s)."""
     argv = [str(BIN / "lubrig"), "rig", "--case", str(case), "--duration", f"{duration:g}",
             "--bag", str(out), "--no-report"]
     if not record:
         argv.append("--no-recorder")
-    start = time.perf_counter()
+    start, epoch = time.perf_counter(), time.time()
     done = subprocess.run(argv, capture_output=True, text=True, timeout=600, check=False)
     wall = time.perf_counter() - start
     if done.returncode != 0:
-        raise RuntimeError(f"{argv} failed ({done.returncode}):\n{done.stdout}\n{done.stderr}")
-    return wall
+        kept = Path(tempfile.mkdtemp(prefix="bench_sim_rate_failed_"))
+        shutil.copytree(out, kept / out.name)  # the node logs outlive the temporary directory
+        raise RuntimeError(f"{argv} failed ({done.returncode}), run folder kept in {kept}:\n"
+                           f"{done.stdout}\n{done.stderr}")
+    return wall, epoch, epoch + wall
+
+
+def start_and_stop(out: Path, began: float, ended: float) -> tuple[float, float]:
+    """Start-up (command start -> belt_drive's first band block) and shutdown (the plant's run
+    complete -> the command's exit), s, from the node logs' stamps (system clock)."""
+    logs = out / "logs"
+    first = _log_time(logs / "belt_drive.log", "sending band samples")
+    return first - began, ended - _log_time(logs / "plant.log", "run complete")
 
 
 def core_rate(case: int, duration: float) -> float:
@@ -83,11 +97,12 @@ def bench_rig(args: argparse.Namespace, tmp: Path) -> None:
     modes = [("recorded", True), ("no recorder", False)] if not args.no_bag else [("no recorder", False)]
     for label, record in modes:
         for rep in range(args.repeat):
-            walls, phases = {}, {}
+            walls, phases, ends = {}, {}, {}
             for duration in (args.short, args.long):
                 out = tmp / f"{label[:2]}{rep}_{duration:g}"
-                walls[duration] = rig_wall(args.case, duration, out, record)
+                walls[duration], began, ended = rig_wall(args.case, duration, out, record)
                 phases[duration] = run_phase(out)
+                ends[duration] = start_and_stop(out, began, ended)
             rate, startup = marginal((args.short, walls[args.short]), (args.long, walls[args.long]))
             print(
                 f"lubrig rig --case {args.case} ({label}): {args.short:g} s run "
@@ -102,6 +117,8 @@ def bench_rig(args: argparse.Namespace, tmp: Path) -> None:
                 f"{args.long / phases[args.long]:.1f}; outside the run phase: "
                 f"{walls[args.long] - phases[args.long]:.2f} s"
             )
+            print("  start-up (command -> first band block) / shutdown (run complete -> exit): " + ", ".join(
+                f"{d:g} s run {ends[d][0]:.2f} s / {ends[d][1]:.2f} s" for d in (args.short, args.long)))
     rate = core_rate(args.case, args.long)
     print(f"core.run.simulate, case {args.case}, {args.long:g} s: {rate:.1f} rig s per wall s")
 
