@@ -65,3 +65,31 @@ def test_local_maxima_are_find_peaks() -> None:
         x = rng.integers(0, 4, n).astype(float) if trial % 2 else rng.random(n)
         assert np.array_equal(local_maxima(x), find_peaks(x)[0]), x
     assert local_maxima(np.array([0.0, 1.0, 1.0, 1.0, 1.0, 0.0])).tolist() == [2]
+
+
+FIRST_UPDATE = """
+import sys
+import numpy as np
+import lubrig_ros.nodes.analysis  # what the node has imported before it runs
+from lubrig_ros.app.analysis_session import AnalysisSession
+from lubrig_ros.core.presets import load_case
+session = AnalysisSession(load_case(1))
+before = set(sys.modules)
+t = np.arange(5000) / 1000.0
+x = 1e-9 * np.sin(2 * np.pi * 9.5 * t)
+session.samples_input(x, x, np.full_like(t, 1e-7), np.full_like(t, 1e-7), float(t[-1]))
+assert session.tick().skipped is None
+print(" ".join(sorted(set(sys.modules) - before)))
+"""
+
+
+def test_the_first_analysis_update_imports_nothing() -> None:
+    """The analysis session loads the law's compiled module and scipy.optimize when it is built.
+
+    Imported inside the node's first update (a timer callback) instead, a SIGINT interrupting the
+    import killed the node with exit 1: numpy turns a KeyboardInterrupt inside its import into an
+    ImportError ("PyCapsule_Import could not import module datetime").
+    """
+    out = subprocess.run([sys.executable, "-c", FIRST_UPDATE], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "", f"imported in the first update: {out.stdout.strip()[:500]}"

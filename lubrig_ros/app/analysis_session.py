@@ -13,6 +13,7 @@ publication.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -146,6 +147,21 @@ class AnalysisSession:
             analysis_every=max(1, s.window // 8),
             rig=config.rig,
         )
+        self._warm_up(config)
+
+    @staticmethod
+    def _warm_up(config: RunConfig) -> None:
+        """Load here what the first update needs: the friction law's compiled module and scipy.optimize.
+
+        Otherwise they are imported inside the node's first update (a timer callback), where a
+        SIGINT interrupting the import killed the node with exit 1 (numpy turns the
+        KeyboardInterrupt raised inside its import into an ImportError).
+        """
+        band = abs(float(config.band(0.0)))
+        with contextlib.suppress(ParameterError, ValueError, ArithmeticError):
+            evaluate_flags(config.rig, band_velocity=band)
+            if band:
+                linear_stability(band, config.rig)
 
     def run_config_input(self, text: str) -> str | None:
         """The plant's latched run configuration (YAML): reconfigure and drop buffered samples.
