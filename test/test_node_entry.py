@@ -45,3 +45,24 @@ def test_sigint_during_start_up_leaves_no_traceback(ros_env: dict[str, str], del
     out, _ = node.communicate(timeout=60)
     assert node.returncode in (0, -signal.SIGINT), out
     assert "Traceback" not in out and "KeyboardInterrupt" not in out, out
+
+
+@pytest.mark.parametrize("name", ["plant", "analysis"])
+def test_sigint_to_a_running_node_is_a_clean_stop(ros_env: dict[str, str], name: str) -> None:
+    """Once the node runs, SIGINT is the clean stop of rclpy's handling: exit status 0."""
+    node = subprocess.Popen(
+        [str(BIN / name), "--ros-args", "-r", "__ns:=/lubrig", "-p", "case:=1"],
+        env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )
+    lines: list[str] = []
+    assert node.stdout is not None
+    for line in node.stdout:  # the node's first log line: it is set up and spinning soon after
+        lines.append(line)
+        if f"[lubrig.{name}]" in line:
+            break
+    time.sleep(1.0)
+    node.send_signal(signal.SIGINT)
+    out, _ = node.communicate(timeout=60)
+    text = "".join(lines) + out
+    assert node.returncode == 0, text
+    assert "Traceback" not in text, text

@@ -5,7 +5,7 @@ signal handling: half a second to a second in which a Ctrl-C, or the launcher st
 that ended before the slowest node had started, raised KeyboardInterrupt inside some import and
 printed its traceback into the node log (issue 11: no tracebacks on a clean stop). So the entry
 point installs a SIGINT handler first that ends the process of the signal, as the default action
-does, without a traceback; the node's own handling replaces it once it is set up.
+does, without a traceback, and puts Python's own handler back once the node module is imported.
 """
 
 from __future__ import annotations
@@ -25,6 +25,9 @@ def _die_of_sigint(_signum: int, _frame: FrameType | None) -> None:
 def _run(name: str) -> int:
     signal.signal(signal.SIGINT, _die_of_sigint)
     module = importlib.import_module(f"lubrig_ros.nodes.{name}")
+    # imported: Python's own handler again, which rclpy's signal handling chains to (a SIGINT to a
+    # running node is a KeyboardInterrupt that its main turns into a clean stop, exit status 0)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     return int(module.main() or 0)
 
 
