@@ -92,6 +92,51 @@ def test_sample_by_sample_equals_one_call(convention):
     assert np.array_equal(np.array(xs), whole.displacement[1:])
 
 
+# issue 11's rig-in-the-loop sequence, then stick-slip: samples of 1 to several hundred substeps
+IN_LOOP_SEQUENCE = [1e-7, -1e-7, 1e-7, 5e-324, 1e-7] * 3 + [2e-8] * 300
+
+
+@pytest.mark.parametrize("attempts", [1, 2, 7, 50])
+def test_a_bounded_sample_resumed_over_calls_equals_one_unbounded_call(attempts):
+    rig = RigParameters()  # physical: sticking, many substeps per sample
+    whole = RigIntegrator(rig, 1e-7)
+    bounded = RigIntegrator(rig, 1e-7)
+    expected = [whole.advance([v]) for v in IN_LOOP_SEQUENCE]
+    calls = []
+    for v in IN_LOOP_SEQUENCE:
+        n, traj = 0, None
+        while traj is None and n < 100_000:
+            n += 1
+            before = bounded.substeps
+            traj = bounded.advance_bounded(v, attempts)
+            assert bounded.substeps - before <= attempts  # never more work than allowed
+            if traj is None:
+                assert bounded.in_progress
+                assert bounded.time == pytest.approx(expected[len(calls)].time[0] - 1e-3)
+        calls.append(n)
+        assert traj is not None
+        assert not bounded.in_progress
+        ref = expected[len(calls) - 1]
+        for name in ("time", "displacement", "velocity", "friction_coefficient", "band_velocity"):
+            assert np.array_equal(getattr(traj, name), getattr(ref, name)), name
+    assert whole.substeps == bounded.substeps
+    if attempts < 7:
+        assert max(calls) > 1  # the budget did cut samples short
+    assert max(calls) >= max(1, whole.substeps // len(IN_LOOP_SEQUENCE) // attempts)
+
+
+def test_a_sample_in_progress_must_be_finished_before_an_unbounded_advance():
+    integ = RigIntegrator(RigParameters(), 1e-7)
+    integ.advance(np.full(10, 1e-7))
+    assert integ.advance_bounded(-1e-7, 1) is None
+    with pytest.raises(RuntimeError, match="in progress"):
+        integ.advance([1e-7])
+    with pytest.raises(ValueError, match="max_attempts=0"):
+        integ.advance_bounded(-1e-7, 0)
+    integ.reset()
+    assert not integ.in_progress and integ.time == 0.0
+
+
 def test_sticking_is_integrated_cheaply_and_stays_on_the_stuck_branch():
     # Physical convention at 2e-8 m/s: the mass sticks (|v_rel| < peak velocity) while the spring
     # loads; an integrator that jumps to the zone-2 root of equal μ would chatter.

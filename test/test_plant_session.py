@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import struct
+import time
 
 import numpy as np
 import pytest
@@ -25,7 +26,7 @@ from lubrig_ros.app.plant_session import (
 )
 from lubrig_ros.core.params import ParameterError
 from lubrig_ros.core.presets import default_config, load_case
-from lubrig_ros.core.run import band_samples, simulate
+from lubrig_ros.core.run import band_samples, integrator_for, simulate
 from lubrig_ros.core.trajectory import Trajectory
 
 DURATION = 0.3  # s: 300 samples at 1 kHz
@@ -190,6 +191,68 @@ def test_realtime_holds_the_last_good_value(mode):
     assert all(math.isfinite(s.displacement) for s in rec.samples)
 
 
+def test_a_sample_over_the_tick_budget_is_an_overrun_finished_at_later_ticks():
+    # rig in the loop: the sign change of issue 11's sequence needs tens of substeps in the
+    # physical convention; with 2 attempts per tick it spans several ticks, none of which blocks
+    config = default_config().with_overrides(convention="physical")
+    rec, ref = Recorder(), Recorder()
+    bounded = rec.session(config, mode="rig_in_loop", tick_step_attempts=2)
+    unbounded = ref.session(config, mode="rig_in_loop", tick_step_attempts=1_000_000)
+    sequence = [1e-7, -1e-7, 1e-7, 5e-324, 1e-7]
+    for session in (bounded, unbounded):
+        session.emit_initial()
+    for value in sequence:
+        bounded.band_input(value)
+        unbounded.band_input(value)
+        unbounded.tick()
+        ticks = 0
+        while len(rec.samples) < len(ref.samples):
+            before = bounded.integrator.substeps
+            bounded.tick()
+            assert bounded.integrator.substeps - before <= 2
+            ticks += 1
+            assert ticks < 10_000
+    assert unbounded.overruns == 0 and bounded.overruns > 0
+    assert bounded.ticks == unbounded.ticks == len(sequence)
+    assert [s.displacement for s in rec.samples] == [s.displacement for s in ref.samples]
+    assert [s.band_velocity for s in rec.samples[1:]] == sequence
+    assert [s.sample_index for s in rec.samples] == list(range(len(sequence) + 1))
+    timing = {s.name: s for s in bounded.diagnostics()}["timing"]
+    assert timing.level == "warn" and "tick overrun" in timing.message
+    assert timing.as_dict()["tick_overruns"] == str(bounded.overruns)
+    again = {s.name: s for s in bounded.diagnostics()}["timing"]
+    assert "overrun" not in again.message  # counted since the last report
+
+
+def test_the_realtime_loop_retries_an_overrun_tick_and_loses_no_sample():
+    config = default_config().with_overrides(convention="physical")
+    rec = Recorder()
+    session = rec.session(config, mode="rig_in_loop", clock=time.perf_counter, tick_step_attempts=1)
+    session.band_input(2e-8)  # sticking: several substeps per sample
+    session.run_realtime(lambda: len(rec.samples) >= 60)
+    assert session.overruns > 0
+    assert [s.sample_index for s in rec.samples] == list(range(len(rec.samples)))
+    integ = integrator_for(config)
+    expected = integ.advance(np.full(len(rec.samples) - 1, 2e-8))
+    assert np.array_equal(rec.column("displacement")[1:], expected.displacement)
+
+
+def test_a_reset_drops_the_sample_in_progress():
+    config = default_config().with_overrides(convention="physical")
+    rec = Recorder()
+    session = rec.session(config, mode="rig_in_loop", tick_step_attempts=1)
+    session.emit_initial()
+    session.band_input(-1e-7)
+    session.tick()
+    assert session.integrator.in_progress and session.overruns == 1
+    session.reset(config)
+    assert not session.integrator.in_progress
+    session.band_input(1e-7)
+    session.tick()
+    session.tick()  # no sample of the old segment is emitted after the reset
+    assert all(s.segment == 1 for s in rec.samples[2:]) and rec.samples[-1].band_velocity == 1e-7
+
+
 def test_staleness_follows_the_input_age():
     clock = FakeClock()
     rec = Recorder()
@@ -332,7 +395,11 @@ def test_parameter_updates_are_checked_and_applied_only_at_reset(case1):
 
 
 @pytest.mark.parametrize(
-    "kwargs", [{"mode": "fast"}, {"band_velocity_limit": 0.0}, {"stale_timeout": math.nan}]
+    "kwargs",
+    [
+        {"mode": "fast"}, {"band_velocity_limit": 0.0}, {"stale_timeout": math.nan},
+        {"tick_step_attempts": 0}, {"tick_step_attempts": 2.5}, {"tick_step_attempts": True},
+    ],
 )
 def test_settings_are_validated(kwargs):
     with pytest.raises(ParameterError):

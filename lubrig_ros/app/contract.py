@@ -476,6 +476,11 @@ def friction_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
     )
 
 
+#: Realtime plant: step attempts per tick. The Table 1 cases need at most 553 substeps for one
+#: sample at rtol 1e-12 (physical stick-slip), about 1-3 ms; a few µs each (docs/nodes.md).
+DEFAULT_TICK_STEP_ATTEMPTS = 500
+
+
 @cache
 def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
     """Every parameter of a plant whose run uses friction law `law`.
@@ -516,6 +521,11 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
            low_open=True),
         _p("stale_timeout", "double", 0.05, "time without good band input before the input is stale",
            unit="s", low=0.0, low_open=True),
+        _p("tick_step_attempts", "integer", DEFAULT_TICK_STEP_ATTEMPTS,
+           "realtime: integrator step attempts per call of the tick; a sample that needs more is "
+           "an overrun, finished by further calls (the loop stays responsive, stop/pause/reset "
+           "and diagnostics run between them) instead of blocking it", unit="attempts", low=1,
+           high=1_000_000),
         WAIT_FOR_SUBSCRIBER,
         REALTIME_PRIORITY,
         _p("diagnostics_period", "double", 1.0, "time between /diagnostics", unit="s", low=0.0,

@@ -42,7 +42,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, replace
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, overload
 
 import numpy as np
 
@@ -52,7 +52,13 @@ from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
 from ..core.run import integrator_for
 from ..core.trajectory import Trajectory, concatenate
-from .contract import MODES, RIG_FIELDS, friction_fields, plant_parameters
+from .contract import (
+    DEFAULT_TICK_STEP_ATTEMPTS,
+    MODES,
+    RIG_FIELDS,
+    friction_fields,
+    plant_parameters,
+)
 from .diagnostics import Level, Status
 from .timing import DeadlineLoop, LatencyHistogram
 
@@ -140,10 +146,16 @@ class PlantSettings:
     mode: str = "sim"
     band_velocity_limit: float = 1e-2
     stale_timeout: float = 0.05
+    tick_step_attempts: int = DEFAULT_TICK_STEP_ATTEMPTS
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ParameterError(f"mode={self.mode!r} is not valid; expected one of {list(MODES)}")
+        attempts = self.tick_step_attempts
+        if isinstance(attempts, bool) or not isinstance(attempts, int) or attempts < 1:
+            raise ParameterError(
+                f"tick_step_attempts={attempts!r} is not valid; expected an integer >= 1"
+            )
         for name in ("band_velocity_limit", "stale_timeout"):
             value = getattr(self, name)
             if not (isinstance(value, float | int) and math.isfinite(value) and value > 0.0):
@@ -259,6 +271,10 @@ class PlantSession:
         self.rejected_since_report = 0
         self.ignored_after_end = 0
         self.integration_errors = 0
+        self.overruns = 0  # realtime: ticks whose sample ran out of step budget (nothing emitted)
+        self._overruns_reported = 0
+        self._pending_band: float | None = None  # realtime: band value of the sample in progress
+        self._pending_recv: float | None = None
         # belt travel (trapezoid rule over the emitted samples)
         self.belt_travel = 0.0
         self._last_band: tuple[float, float] | None = None
@@ -314,6 +330,7 @@ class PlantSession:
             self.complete = False
             self._queue.clear()
             self._rt_queue.clear()
+            self._pending_band = self._pending_recv = None
             self._emitted_initial = False
             if self.mode != "sim":
                 self.integrator.reset(band_velocity=self.latest_band)
@@ -473,34 +490,46 @@ class PlantSession:
         return concatenate([self._advance(float(b)) for b in band])
 
     # ---- realtime / rig in the loop ------------------------------------------------------
-    def tick(self, deadline: float | None = None, late: float = 0.0) -> None:
-        """Realtime: advance one sample with the latest good band value and emit it.
+    def tick(self, deadline: float | None = None, late: float = 0.0) -> bool:
+        """Realtime: advance one sample with the latest good band value and emit it; True if emitted.
 
         `deadline` (clock() time the tick was due) and `late` (how late it started) feed the
         timing statistics: a tick that finishes more than one period after its deadline is a
         deadline miss; the latency from a new band value's arrival to its sample is recorded.
+        At most `tick_step_attempts` integrator steps per call: a sample that needs more is an
+        overrun (False, nothing emitted), and the next call carries on with the same band value.
         """
         with self.lock:
-            recv = self.latest_band_recv if self.new_band else None
-            self.new_band = False
-            if self._rt_queue:
-                self.latest_band = self._rt_queue.popleft()
-                self.new_band = bool(self._rt_queue)
-            self._emit(self._advance(self.latest_band))
-            self._emitted_initial = True
+            if self._pending_band is None:
+                recv = self.latest_band_recv if self.new_band else None
+                self.new_band = False
+                if self._rt_queue:
+                    self.latest_band = self._rt_queue.popleft()
+                    self.new_band = bool(self._rt_queue)
+                self._pending_band, self._pending_recv = self.latest_band, recv
+            traj = self._advance(self._pending_band, self.settings.tick_step_attempts)
             done = self.clock()
+            self.max_late = max(self.max_late, late)
+            if traj is None:  # the sample's step budget ran out: carry on at the next call
+                self.overruns += 1
+                return False
+            recv, self._pending_band, self._pending_recv = self._pending_recv, None, None
+            self._emit(traj)
+            self._emitted_initial = True
             self.ticks += 1
             if recv is not None:
                 self.latencies.add(done - recv)
-            self.max_late = max(self.max_late, late)
             if deadline is not None and done - deadline > self.period:
                 self.misses += 1
+            return True
 
     def run_realtime(self, stopped: Callable[[], bool]) -> None:
         """Realtime: emit the initial state, then tick at the sample rate until stopped().
 
         Absolute deadlines (app.timing.DeadlineLoop); paused: wait; after a reset or a resume
-        the deadlines restart from now. Exceptions of a tick propagate to the caller.
+        the deadlines restart from now. An overrun tick is retried at once for the same deadline
+        (the loop sees stop, pause and reset between the calls, and other threads get the GIL,
+        which the compiled integrator holds). Exceptions of a tick propagate to the caller.
         """
         loop = DeadlineLoop(self.period)
         k = 0
@@ -513,18 +542,31 @@ class PlantSession:
                 loop, k = DeadlineLoop(self.period), 0
             k += 1
             late = loop.wait(k)
-            self.tick(loop.deadline(k), late)
+            if not self.tick(loop.deadline(k), late):
+                k -= 1  # the same sample and deadline again, without waiting
 
     # ---- integration and output ----------------------------------------------------------
-    def _advance(self, band: float) -> Trajectory:
+    @overload
+    def _advance(self, band: float) -> Trajectory: ...
+    @overload
+    def _advance(self, band: float, max_attempts: int) -> Trajectory | None: ...
+
+    def _advance(self, band: float, max_attempts: int | None = None) -> Trajectory | None:
         """One sample; a failed one restarts the rig at equilibrium at the next sample time.
 
         Restarting there (not at t = 0) keeps rig time monotonic and the sample count right, so a
-        sim run still completes and belt_drive's flow control does not stall.
+        sim run still completes and belt_drive's flow control does not stall. With `max_attempts`
+        (realtime ticks) None means the sample is unfinished: call again with the same band value.
         """
         t_next = self.integrator.time + self.integrator.dt
         try:
-            traj = self.integrator.advance(np.array([band]))
+            if max_attempts is None:
+                traj = self.integrator.advance(np.array([band]))
+            else:
+                bounded = self.integrator.advance_bounded(band, max_attempts)
+                if bounded is None:
+                    return None
+                traj = bounded
             if math.isfinite(traj.displacement[0]) and math.isfinite(traj.velocity[0]):
                 return traj
             problem = "non-finite state"
@@ -638,12 +680,20 @@ class PlantSession:
                     "belt_drive waits for the plant or a required consumer (flow_progress)"
                 )
             else:
-                level = "warn" if share > MISS_SHARE_WARN else "ok"
+                overran = self.overruns - self._overruns_reported
+                level = "warn" if share > MISS_SHARE_WARN or overran else "ok"
                 message = (
                     f"{self.misses} deadline misses in {samples} samples"
                     if self.mode != "sim"
                     else ("complete" if self.complete else "running")
                 )
+                if overran:
+                    message += (
+                        f"; {overran} tick overrun(s) since the last report (a sample needed more "
+                        f"than tick_step_attempts={self.settings.tick_step_attempts} step attempts "
+                        "and was finished by further calls)"
+                    )
+            self._overruns_reported = self.overruns
             timing = Status(
                 name="timing",  # the node prefixes its fully qualified name
                 hardware_id=HARDWARE_ID,
@@ -660,6 +710,7 @@ class PlantSession:
                     ("latency_p99_s", f"{p99:.6f}"),
                     ("latency_samples", str(self.latencies.count)),
                     ("integration_errors", str(self.integration_errors)),
+                    ("tick_overruns", str(self.overruns)),
                     ("paused", str(self.paused).lower()),
                     ("run_complete", str(self.complete).lower()),
                 ),

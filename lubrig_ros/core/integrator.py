@@ -23,7 +23,20 @@ from typing import Any
 import numpy as np
 
 from .friction_laws import law_for
-from .kernels import _A, _A2, _C, _E, OK, specialize
+from .kernels import (
+    _A,
+    _A2,
+    _C,
+    _E,
+    BUDGET,
+    BUDGET_SPENT,
+    COMPLETED,
+    OK,
+    PARTIAL_T0,
+    STATE_SIZE,
+    SUBSTEPS,
+    specialize,
+)
 from .params import RigParameters
 from .trajectory import Trajectory
 
@@ -103,9 +116,11 @@ class RigIntegrator:
             x_start = float(self.initial_displacement)
         else:
             x_start = (1.0 + self.initial_perturbation) * self.equilibrium_displacement
-        self._state = np.array(
-            [float(time), x_start, self.initial_velocity, self.initial_band_velocity, 0.1 * self.dt, 0.0]
+        self._state = np.zeros(STATE_SIZE)
+        self._state[:5] = (
+            float(time), x_start, self.initial_velocity, self.initial_band_velocity, 0.1 * self.dt
         )
+        self._state[PARTIAL_T0] = math.nan
 
     @property
     def _scales(self) -> tuple[float, float]:
@@ -114,13 +129,18 @@ class RigIntegrator:
 
     @property
     def time(self) -> float:
-        """Current rig time in s."""
-        return float(self._state[0])
+        """Rig time of the last completed sample, s (a sample in progress has not reached its time)."""
+        return float(self._state[PARTIAL_T0] if self.in_progress else self._state[0])
 
     @property
     def substeps(self) -> int:
         """Accepted Radau steps so far (work measure)."""
-        return int(self._state[5])
+        return int(self._state[SUBSTEPS])
+
+    @property
+    def in_progress(self) -> bool:
+        """True while a sample started by advance_bounded is unfinished (its budget ran out)."""
+        return not math.isnan(self._state[PARTIAL_T0])
 
     def snapshot(self) -> np.ndarray:
         """A copy of the full stepper state (time, state, step size, counters) for `restore`."""
@@ -137,25 +157,54 @@ class RigIntegrator:
 
     def advance(self, band_velocities: np.typing.ArrayLike) -> Trajectory:
         """Integrate over the next len(band_velocities) samples; sample k holds v_band at t + (k+1)·dt."""
+        band = self._band(band_velocities)
+        if self.in_progress:
+            raise RuntimeError("a sample is in progress (advance_bounded ran out of budget); finish it first")
+        t_start = self._state[0]
+        out_x, out_w = self._run(band, 0)
+        time = t_start + self.dt * np.arange(1, band.size + 1)
+        return self._sampled(time, out_x, out_w, band)
+
+    def advance_bounded(self, band_velocity: float, max_attempts: int) -> Trajectory | None:
+        """One sample with at most `max_attempts` step attempts; None when they ran out.
+
+        A real-time plant cannot wait for a sample that needs thousands of substeps: it calls this
+        once per tick and, on None, calls again at the next tick with the same band velocity, which
+        carries on where the last call stopped. The finished sample equals advance([band_velocity]).
+        """
+        if max_attempts < 1:
+            raise ValueError(f"max_attempts={max_attempts!r} must be >= 1 step attempt")
+        band = self._band([band_velocity])
+        resumed = self.in_progress
+        t_start = self._state[PARTIAL_T0] if resumed else self._state[0]
+        out_x, out_w = self._run(band, max_attempts)
+        if self.in_progress:
+            return None
+        return self._sampled(np.array([t_start + self.dt]), out_x, out_w, band)
+
+    def _band(self, band_velocities: np.typing.ArrayLike) -> np.ndarray:
         band = np.ascontiguousarray(band_velocities, dtype=np.float64).reshape(-1)
         if not np.isfinite(band).all():
             bad = band[~np.isfinite(band)][0]
             raise ValueError(f"band velocity {bad!r} is not finite; expected finite m/s values")
+        return band
+
+    def _run(self, band: np.ndarray, max_attempts: int) -> tuple[np.ndarray, np.ndarray]:
         out_x = np.empty(band.size)
         out_w = np.empty(band.size)
-        t_start = self._state[0]
         atol_x, atol_w = self._scales
+        self._state[BUDGET] = float(max_attempts)
         status = self._stepper(
             self._state, band, self.dt, self._rig_array, self._fp, self.rtol, atol_x, atol_w,
             _A, _A2, _C, _E, out_x, out_w,
         )
-        if status != OK:
+        if status not in (OK, BUDGET_SPENT):
             raise IntegrationError(
                 f"step size collapsed at t={self._state[0]:.6g} s (rtol={self.rtol}); "
                 "the band velocity or rig parameters may be outside the model's range"
             )
-        time = t_start + self.dt * np.arange(1, band.size + 1)
-        return self._sampled(time, out_x, out_w, band)
+        done = int(self._state[COMPLETED])
+        return out_x[:done], out_w[:done]
 
     def _sampled(
         self, time: np.ndarray, x: np.ndarray, w: np.ndarray, band: np.ndarray

@@ -97,6 +97,15 @@ _MAX_FACTOR = 8.0
 # Status codes of the compiled kernel.
 OK = 0
 STEP_TOO_SMALL = 1
+#: The call's step budget (state[BUDGET]) ran out inside a sample; the next call resumes it.
+BUDGET_SPENT = 2
+
+#: Layout of the stepper state (float64 array of STATE_SIZE).
+T, X, W, BAND, H, SUBSTEPS = 0, 1, 2, 3, 4, 5
+BUDGET = 6  # step attempts allowed in one call, accepted or rejected (0: unlimited)
+PARTIAL_T0, PARTIAL_X0, PARTIAL_W0 = 7, 8, 9  # start of a sample in progress (t0 NaN: none)
+COMPLETED = 10  # samples the last call completed
+STATE_SIZE = 11
 
 
 @njit(cache=True)
@@ -267,21 +276,39 @@ def _advance_py(
     out_x: np.ndarray,
     out_w: np.ndarray,
 ) -> int:
-    """Advance over len(band) samples; state = [t, x, ẋ, v_band, h, substeps] is updated in place.
+    """Advance over len(band) samples; state (layout: T … COMPLETED above) is updated in place.
 
     On failure (STEP_TOO_SMALL) the state is that of the last completed sample, so a caller can
-    carry on from the sample grid.
+    carry on from the sample grid. With a budget (state[BUDGET] > 0 step attempts) a call that
+    spends it inside a sample returns BUDGET_SPENT with the state at the last accepted substep
+    and the sample's start in PARTIAL_*: the next call with the same band value finishes that
+    sample first (a resumed sample gives the same result as one integrated in one call).
+    state[COMPLETED] counts the samples this call wrote to out_x/out_w.
     """
     t, x, w, vb_prev, h = state[0], state[1], state[2], state[3], state[4]
     substeps = state[5]
+    budget = state[6]
+    attempts = 0.0
+    resume = not math.isnan(state[7])
     work = np.empty((8, 3))
     jac = np.empty((3, 3))
     for k in range(band.size):
-        t0 = t
-        x0, w0 = x, w  # the last completed sample, restored if this one fails
+        if resume:
+            t0, x0, w0 = state[7], state[8], state[9]
+            resume = False
+        else:
+            t0 = t
+            x0, w0 = x, w  # the last completed sample, restored if this one fails
         t_end = t0 + dt
         vb_next = band[k]
         while t < t_end:
+            if budget > 0.0 and attempts >= budget:
+                state[0], state[1], state[2], state[3], state[4] = t, x, w, vb_prev, h
+                state[5] = substeps
+                state[7], state[8], state[9] = t0, x0, w0
+                state[10] = k
+                return BUDGET_SPENT
+            attempts += 1.0
             remaining = t_end - t
             last = h >= remaining * (1.0 - 1e-12)
             step = remaining if last else h
@@ -308,6 +335,8 @@ def _advance_py(
                     # leave the state on the sample grid: the last completed sample
                     state[0], state[1], state[2], state[3], state[4] = t0, x0, w0, vb_prev, dt * 0.1
                     state[5] = substeps
+                    state[7] = math.nan
+                    state[10] = k
                     return STEP_TOO_SMALL
         t = t_end
         vb_prev = vb_next
@@ -315,6 +344,8 @@ def _advance_py(
         out_w[k] = w
     state[0], state[1], state[2], state[3], state[4] = t, x, w, vb_prev, h
     state[5] = substeps
+    state[7] = math.nan
+    state[10] = band.size
     return OK
 
 
@@ -416,9 +447,9 @@ def advance(
     out_x: np.ndarray,
     out_w: np.ndarray,
 ) -> int:
-    """Advance over len(band) samples with the law `kernel` (p = fp); status OK or STEP_TOO_SMALL.
+    """Advance over len(band) samples with the law `kernel` (p = fp); OK, STEP_TOO_SMALL or BUDGET_SPENT.
 
-    state = [t, x, ẋ, v_band, h, substeps] is updated in place; rig = [m, c, k, γ, N].
+    state (STATE_SIZE values, layout above) is updated in place; rig = [m, c, k, γ, N].
     """
     return int(
         specialize(kernel)[0](

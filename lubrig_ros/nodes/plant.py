@@ -88,7 +88,10 @@ class Plant(Node):
         self.publish_clock = bool(values["publish_clock"]) and self.mode == "sim"
         if values["publish_clock"] and self.mode != "sim":
             self.get_logger().warning("publish_clock applies to sim mode only; no /clock published")
-        settings = PlantSettings(values["mode"], values["band_velocity_limit"], values["stale_timeout"])
+        settings = PlantSettings(
+            values["mode"], values["band_velocity_limit"], values["stale_timeout"],
+            values["tick_step_attempts"],
+        )
         self.participant = self.get_fully_qualified_name()
         if self.mode == "sim":
             self.pub_block = create_publisher(self, "state_block")
