@@ -45,6 +45,8 @@ GRACE_S = 10.0
 #: finalize the bag: on a loaded machine that took longer than GRACE_S (seen: SIGTERM just after
 #: it had written every sample). A guard against a hang, not an expected duration.
 RECORDER_GRACE_S = 40.0
+#: Recorder worker processes in sim mode (recorder_command).
+SIM_RECORDER_WORKERS = 1
 #: Sim: end the run (non-zero) once the plant has reported it stalled this long without a break
 #: (a run that cannot progress; a loaded machine's pauses of a few seconds are not one).
 STALL_GIVE_UP_S = 15.0
@@ -196,6 +198,20 @@ def _wait_complete(
     return bool(done)
 
 
+def _dump_stacks(name: str, proc: subprocess.Popen, grace: float) -> None:
+    """A node that ignored SIGINT: SIGUSR1 makes it write its threads' stacks to its log."""
+    print(
+        f"lubrig rig: {name} did not stop within {grace:g} s of SIGINT; its Python stacks go to "
+        "its log (SIGUSR1), then SIGTERM",
+        file=sys.stderr,
+    )
+    try:
+        proc.send_signal(signal.SIGUSR1)  # nodes.entry registers faulthandler for it
+        proc.wait(timeout=0.5)
+    except (subprocess.TimeoutExpired, ProcessLookupError):
+        pass
+
+
 def stop_all(procs: dict[str, subprocess.Popen], grace: float = GRACE_S) -> dict[str, int]:
     """SIGINT every running process, wait, then SIGTERM (and SIGKILL) what is left."""
     for proc in procs.values():
@@ -207,6 +223,7 @@ def stop_all(procs: dict[str, subprocess.Popen], grace: float = GRACE_S) -> dict
         try:
             codes[name] = proc.wait(timeout=max(0.1, end - time.monotonic()))
         except subprocess.TimeoutExpired:
+            _dump_stacks(name, proc, grace)
             proc.terminate()
             try:
                 codes[name] = proc.wait(timeout=5)
@@ -219,10 +236,14 @@ def stop_all(procs: dict[str, subprocess.Popen], grace: float = GRACE_S) -> dict
 def recorder_command(
     bag_dir: Path, run_config: Path, mode: str, namespace: str = DEFAULT_NAMESPACE
 ) -> list[str]:
-    """The recorder's command line: the rig's namespace; rig time as log time in sim mode."""
+    """The recorder's command line: the rig's namespace; sim mode: rig time as log time, one worker.
+
+    A sim run streams blocks, a few hundred messages per second, which one worker takes; each
+    worker is a DDS participant whose start-up costs CPU on the run's critical path.
+    """
     argv = [_executable("recorder"), "-o", str(bag_dir), "--config", str(run_config)]
     argv += ["--namespace", namespace]
-    return argv + (["--use-sim-time"] if mode == "sim" else [])
+    return argv + (["--use-sim-time", "--workers", str(SIM_RECORDER_WORKERS)] if mode == "sim" else [])
 
 
 def _set_aside(bag_dir: Path) -> None:

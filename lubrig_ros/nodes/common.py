@@ -32,6 +32,7 @@ from ..app.timing import DeadlineLoop
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
 from .interfaces import qos_profile
+from .script import bounded_teardown
 
 #: rclpy QoS profiles of the contract's plain-data QoS (app/contract.py).
 STREAM_QOS = qos_profile(contract.STREAM_QOS)
@@ -313,13 +314,16 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
             close = getattr(node, "close", None)
             if close is not None:
                 close()
-            node.destroy_node()
-        if executor is not None:
-            # shut down while the context lives: otherwise Executor.__del__ at exit prints an
-            # InvalidHandle traceback (its SIGINT guard condition is already destroyed)
-            with contextlib.suppress(Exception):
-                executor.shutdown(timeout_sec=1.0)
-        rclpy.try_shutdown()
+        name = node.get_name() if node is not None else "lubrig"
+        with bounded_teardown(name, lambda: status):
+            if node is not None:
+                node.destroy_node()
+            if executor is not None:
+                # shut down while the context lives: otherwise Executor.__del__ at exit prints an
+                # InvalidHandle traceback (its SIGINT guard condition is already destroyed)
+                with contextlib.suppress(Exception):
+                    executor.shutdown(timeout_sec=1.0)
+            rclpy.try_shutdown()
     return status
 
 

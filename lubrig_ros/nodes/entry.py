@@ -6,10 +6,15 @@ that ended before the slowest node had started, raised KeyboardInterrupt inside 
 printed its traceback into the node log (issue 11: no tracebacks on a clean stop). So the entry
 point installs a SIGINT handler first that ends the process of the signal, as the default action
 does, without a traceback, and puts Python's own handler back once the node module is imported.
+
+SIGUSR1 writes the Python stack of every thread to stderr (the node log; faulthandler): the
+launcher sends it to a node that has not stopped within its grace period, before SIGTERM, so a
+wedged node leaves the evidence of where it hung.
 """
 
 from __future__ import annotations
 
+import faulthandler
 import importlib
 import os
 import signal
@@ -24,6 +29,7 @@ def _die_of_sigint(_signum: int, _frame: FrameType | None) -> None:
 
 def _run(name: str) -> int:
     signal.signal(signal.SIGINT, _die_of_sigint)
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     module = importlib.import_module(f"lubrig_ros.nodes.{name}")
     # imported: Python's own handler again, which rclpy's signal handling chains to (a SIGINT to a
     # running node is a KeyboardInterrupt that its main turns into a clean stop, exit status 0)

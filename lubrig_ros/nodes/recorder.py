@@ -35,6 +35,7 @@ import contextlib
 import json
 import math
 import multiprocessing as mp
+import multiprocessing.forkserver as mp_forkserver
 import os
 import queue
 import signal
@@ -63,7 +64,7 @@ from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import ACCOUNTING_SIDECAR, cdr_string
 from lubrig_ros.bag.repair import repair_bag
 from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, serialize_string, typestore
-from lubrig_ros.nodes.script import run_script
+from lubrig_ros.nodes.script import bounded_teardown, run_script
 
 BATCH_PERIOD_S = 0.02
 SIM_HOLD_NS = 300_000_000  # wait this long for /clock before stamping an unstamped message
@@ -557,7 +558,6 @@ class Recorder:
         and `lubrig bag repair DIR` can retry.
         """
         self.stop_event.set()
-        self.stop_progress()
         for p in self.procs:
             p.join(timeout=3)
             if p.is_alive():
@@ -631,6 +631,10 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--config {str(args.config)!r} is not valid YAML: {exc}") from exc
     output = args.output or Path(time.strftime("lubrig_%Y%m%d_%H%M%S"))
     should_stop = [False]
+    # the fork server imports rclpy and this module while this process sets up its own node and
+    # the bag, instead of after (start-up of a recorded run is on the critical path, issue 12)
+    _context()
+    mp_forkserver.ensure_running()
 
     def on_signal(_signum: int, _frame: object) -> None:
         should_stop[0] = True
@@ -649,6 +653,8 @@ def run(args: argparse.Namespace) -> int:
     except BagError:  # nothing recorded yet: one error line, exit 2 (run_script)
         with contextlib.suppress(BagError):
             recorder.shutdown()
+        with bounded_teardown("recorder", lambda: 2):
+            recorder.stop_progress()
         raise
     try:
         if started:
@@ -679,7 +685,11 @@ def run(args: argparse.Namespace) -> int:
     problems = recorder.problems()
     for line in problems:
         print(f"recorder: error: incomplete recording: {line}", file=sys.stderr, flush=True)
-    return 1 if problems else status
+    status = 1 if problems else status
+    # last, once the bag is final and the verdict printed: a hung teardown cannot cost either
+    with bounded_teardown("recorder", lambda: status):
+        recorder.stop_progress()
+    return status
 
 
 def main(argv: Sequence[str] | None = None) -> int:
