@@ -9,6 +9,7 @@ process sees every topic and service of the contract under /rigA with the docume
 
 from __future__ import annotations
 
+import math
 import subprocess
 
 import numpy as np
@@ -117,9 +118,9 @@ def test_lubrig_rig_namespace(tmp_path, ros_env):
                     "/rig_2/oscillation_growing", "/rig_2/wavelet_frame", "/rig_2/stability"}
     ), recorded
     assert not [t for t in recorded if t.startswith("/lubrig")], recorded
-    with Reader(out / "bag") as reader:  # the state blocks of the 1 s run (blocks of 100)
+    with Reader(out / "bag") as reader:  # the state blocks of the 1 s run (default block length)
         counts = {c.topic: c.msgcount for c in reader.connections}
-    assert counts["/rig_2/state_block"] == 10, counts
+    assert counts["/rig_2/state_block"] == math.ceil(1000 / contract.DEFAULT_BLOCK_LENGTH), counts
     bad = subprocess.run(
         [str(BIN / "lubrig"), "rig", "--case", "1", "--bag", str(tmp_path / "x"), "--namespace", "rig-2"],
         env=ros_env, capture_output=True, text=True, timeout=60, check=False,
