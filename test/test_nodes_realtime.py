@@ -172,6 +172,15 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     # may miss the very first samples beside CPU hogs — realtime loss is the recorder's accounting)
     assert new[0].sample_index < 100, [m.sample_index for m in new[:5]]
     assert all(a < b for a, b in itertools.pairwise(m.sample_index for m in new))
+    # every reset and pause is logged with its caller: the probe's node, found by its client's GID
+    caller = probe.node.get_fully_qualified_name()
+
+    def called(service: str) -> list[str]:
+        return [ln for ln in procs.log("plant").splitlines() if f"{NS}/plant/{service} called by" in ln]
+
+    assert probe.wait_for(lambda: len(called("pause")) == 2 and called("reset"), 10), procs.log("plant")
+    assert all(f"called by {caller} (request " in ln for ln in called("pause") + called("reset")), (
+        caller, called("pause"), called("reset"))
     codes = procs.stop_all()
     assert all(code == 0 for code in codes.values()), (codes, procs.logs())
 

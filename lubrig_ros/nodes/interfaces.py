@@ -59,3 +59,50 @@ def create_service(node: Any, name: str, callback: Callable[[Any, Any], Any]) ->
     """A service server of the contract service `name`, name resolved by rcl (namespace, remaps)."""
     spec = contract.service(name)
     return node.create_service(message_class(spec.srvtype), spec.name, callback)
+
+
+def report_callers(node: Any, service: Any, report: Callable[[str], None]) -> Any:
+    """Name the client of every request `service` receives: report("/ns/node (request N)").
+
+    rclpy hands a service callback the request only; the middleware knows the client's GID.
+    Service introspection (metadata only: no request or response contents) publishes it on
+    ``<service>/_service_event`` (what ``ros2 service echo`` reads); this subscribes to that
+    topic and looks the GID up in the ROS graph: the client's request writer
+    (``rq<service>Request``) or reply reader (``rr<service>Reply``), whichever the rmw puts in
+    the request header, belongs to the client's node. The report comes just after the callback
+    (the event travels through DDS). Returns the subscription.
+    """
+    from rclpy.qos import qos_profile_services_default
+    from rclpy.service_introspection import ServiceIntrospectionState
+    from service_msgs.msg import ServiceEventInfo
+
+    name = service.service_name
+    service.configure_introspection(
+        node.get_clock(), qos_profile_services_default, ServiceIntrospectionState.METADATA
+    )
+
+    def on_event(event: Any) -> None:
+        if event.info.event_type != ServiceEventInfo.REQUEST_RECEIVED:
+            return
+        gid = bytes(event.info.client_gid)
+        report(f"{client_node(node, name, gid)} (request {event.info.sequence_number})")
+
+    return node.create_subscription(
+        service.srv_type.Event, f"{name}/_service_event", on_event, qos_profile_services_default
+    )
+
+
+def client_node(node: Any, service_name: str, gid: bytes) -> str:
+    """The fully qualified name of the node whose client endpoint of `service_name` has `gid`."""
+    endpoints = [
+        *node.get_publishers_info_by_topic(f"rq{service_name}Request", no_mangle=True),
+        *node.get_subscriptions_info_by_topic(f"rr{service_name}Reply", no_mangle=True),
+    ]
+    for exact in (True, False):  # the endpoint itself, else its participant (the process)
+        for info in endpoints:
+            own = bytes(info.endpoint_gid)[: len(gid)]
+            if own == gid if exact else own[:12] == gid[:12]:
+                namespace = info.node_namespace.rstrip("/")
+                fqn = f"{namespace}/{info.node_name}"
+                return fqn if exact else f"a client in the process of {fqn}"
+    return f"an unknown client (GID {gid.hex()}, not in the ROS graph)"

@@ -49,7 +49,7 @@ from ..app.plant_session import (
 )
 from ..core.params import ParameterError
 from . import common
-from .interfaces import create_publisher, create_service, create_subscription
+from .interfaces import create_publisher, create_service, create_subscription, report_callers
 
 HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
 BLOCK_FIELDS = (
@@ -128,8 +128,11 @@ class Plant(Node):
         # raw (serialized CDR) subscription: about 2x cheaper per message than a Float64 object
         create_subscription(self, "band_velocity", self._on_band_raw, raw=True)
         create_subscription(self, "band_velocity_block", self._on_band_block)
-        create_service(self, "plant/reset", self._on_reset)
-        create_service(self, "plant/pause", self._on_pause)
+        for name, callback in (("plant/reset", self._on_reset), ("plant/pause", self._on_pause)):
+            service = create_service(self, name, callback)
+            # every reset/pause is logged with its caller (issue 11); rclpy does not tell the callback
+            report_callers(self, service, lambda who, n=service.service_name: self.get_logger().info(
+                f"{n} called by {who}"))
         self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
         self._stop = threading.Event()
         self._log_problems = common.ProblemLog(self)  # warn/error statuses also to the log
