@@ -21,6 +21,7 @@ at once; <ns>/plant/pause pauses. Topics, QoS, parameters: app/contract.py.
 from __future__ import annotations
 
 import array
+import functools
 import sys
 import threading
 
@@ -131,8 +132,7 @@ class Plant(Node):
         for name, callback in (("plant/reset", self._on_reset), ("plant/pause", self._on_pause)):
             service = create_service(self, name, callback)
             # every reset/pause is logged with its caller (issue 11); rclpy does not tell the callback
-            report_callers(self, service, lambda who, n=service.service_name: self.get_logger().info(
-                f"{n} called by {who}"))
+            report_callers(self, service, functools.partial(self._log_caller, service.service_name))
         self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
         self._stop = threading.Event()
         self._log_problems = common.ProblemLog(self)  # warn/error statuses also to the log
@@ -190,6 +190,9 @@ class Plant(Node):
         response.success = True
         response.message = f"rig reset to t = 0 and the initial state; segment {segment}"
         return response
+
+    def _log_caller(self, service: str, who: str) -> None:
+        self.get_logger().info(f"{service} called by {who}")
 
     def _on_pause(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
         response.success, response.message = True, self.session.set_paused(bool(request.data))
