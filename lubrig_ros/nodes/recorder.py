@@ -631,10 +631,6 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError(f"--config {str(args.config)!r} is not valid YAML: {exc}") from exc
     output = args.output or Path(time.strftime("lubrig_%Y%m%d_%H%M%S"))
     should_stop = [False]
-    # the fork server imports rclpy and this module while this process sets up its own node and
-    # the bag, instead of after (start-up of a recorded run is on the critical path, issue 12)
-    _context()
-    mp_forkserver.ensure_running()
 
     def on_signal(_signum: int, _frame: object) -> None:
         should_stop[0] = True
@@ -642,6 +638,10 @@ def run(args: argparse.Namespace) -> int:
     # before the bag exists: a Ctrl-C while it is being created must still leave it finalized
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
+    # the fork server imports rclpy and this module while this process sets up its own node and
+    # the bag, instead of after (start-up of a recorded run is on the critical path, issue 12)
+    _context()
+    mp_forkserver.ensure_running()
     recorder = Recorder(
         output, specs, args.workers or auto_workers(specs), run_config, args.use_sim_time,
         args.flush_interval, args.namespace, args.flush_period, args.flush_messages,
