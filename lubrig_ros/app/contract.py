@@ -402,7 +402,7 @@ REALTIME_PRIORITY = _p(
     "ticks; 0 keeps normal scheduling", low=0, high=99,
 )
 #: Band samples per BandVelocityBlock (sim); measured: docs/nodes.md "Block length".
-DEFAULT_BLOCK_LENGTH = 500
+DEFAULT_BLOCK_LENGTH = 250
 MAX_BLOCK_LENGTH = 10_000
 #: Band samples belt_drive may send beyond the slowest participant (sim).
 DEFAULT_FLOW_WINDOW = 1000
