@@ -28,7 +28,7 @@ def test_analysis_survives_band_at_rest_constant_and_malformed_states(procs, pro
                        ("dominant_frequency", Float64), ("wavelet_power", Float64MultiArray),
                        ("wavelet_frame", WaveletFrame), ("stability", StabilityFlags)):
         probe.subscribe(f"{NS}/{name}", kind, common.ANALYSIS_QOS)
-    proc = procs.node("analysis", window=256, n_scales=16, publish_period=0.1)
+    proc = procs.node("analysis", window=256, n_scales=16, publish_period=0.1, per_sample_input=True)
     state = probe.publisher(f"{NS}/state", RigState, common.STREAM_QOS)
     block = probe.publisher(f"{NS}/state_block", RigStateBlock, qos_profile(contract.BLOCK_QOS))
     assert probe.wait_for(

@@ -227,7 +227,9 @@ def test_a_sample_over_the_tick_budget_is_an_overrun_finished_at_later_ticks():
 def test_the_realtime_loop_retries_an_overrun_tick_and_loses_no_sample():
     config = default_config().with_overrides(convention="physical")
     rec = Recorder()
-    session = rec.session(config, mode="rig_in_loop", clock=time.perf_counter, tick_step_attempts=1)
+    # max_lag far beyond this run's lateness: the overrun rule alone (falling behind: below)
+    session = rec.session(config, mode="rig_in_loop", clock=time.perf_counter, tick_step_attempts=1,
+                          max_lag=10.0)
     session.band_input(2e-8)  # sticking: several substeps per sample
     session.run_realtime(lambda: len(rec.samples) >= 60)
     assert session.overruns > 0
@@ -261,7 +263,9 @@ def test_staleness_follows_the_input_age():
     def band() -> dict[str, str]:
         return {s.name: s for s in session.diagnostics()}["band input"].as_dict()
 
-    assert session.stale() and band()["input_age_s"] == "none"  # no input yet
+    values = band()  # no input yet: waiting, not stale (no warning before the rig could run)
+    assert not session.stale() and values["input_age_s"] == "none"
+    assert values["_message"] == "waiting for band input"
     session.band_input(1e-7)
     clock.now += 0.04
     assert not session.stale() and band()["stale"] == "false"
@@ -287,7 +291,7 @@ def test_sim_is_never_stale(case1):
 def test_timing_statistics_latency_and_deadline_misses():
     clock = FakeClock()
     rec = Recorder()
-    session = rec.session(default_config(), mode="realtime", clock=clock)
+    session = rec.session(default_config(), mode="rig_in_loop", clock=clock)
     period = session.period
     session.band_input(1e-7)
     clock.now += 0.0005
@@ -300,7 +304,8 @@ def test_timing_statistics_latency_and_deadline_misses():
     timing = {s.name: s for s in session.diagnostics()}["timing"]
     values = timing.as_dict()
     assert values["deadline_misses"] == "1" and values["samples"] == "3"
-    assert float(values["max_lateness_s"]) == pytest.approx(2 * period)
+    assert float(values["max_lateness_s"]) == pytest.approx(3 * period)  # finished 3 periods late
+    assert float(values["lag_s"]) == pytest.approx(3 * period)  # the newest sample
     assert timing.level == "warn" and timing.message == "1 deadline misses in 3 samples"
 
 

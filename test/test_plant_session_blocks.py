@@ -162,10 +162,30 @@ def test_paused_blocks_wait_and_are_integrated_in_order_on_resume(case1):
     assert np.array_equal(sink.column("displacement"), ref.displacement)
 
 
-@pytest.mark.parametrize("mode", ["realtime", "rig_in_loop"])
-def test_realtime_uses_a_block_one_value_per_tick(mode):
+def test_realtime_takes_band_values_by_sample_index():
+    """realtime: band values sent ahead are used for their sample index, whatever the arrival order."""
     sink = Sink()
-    session = sink.session(default_config(), mode=mode, per_sample=True)
+    session = sink.session(default_config(), mode="realtime", per_sample=True)
+    session.emit_initial()
+    assert session.band_block([3e-7, 4e-7], segment=0, first_sample_index=2) == 2  # ahead
+    assert session.band_block([1e-7, 2e-7], segment=0, first_sample_index=0) == 2
+    session.band_input(9e-7)  # a Float64 changes the held value, not the indexed ones
+    for _ in range(5):
+        session.tick()
+    assert [s.band_velocity for s in sink.samples[1:]] == [1e-7, 2e-7, 3e-7, 4e-7, 4e-7]
+    assert session.held_samples == 1  # sample 5 had no value of its own: the last one held
+    assert session.band_block([5e-7], segment=0, first_sample_index=1) == 1  # too late
+    assert session.band_block([5e-7], segment=7, first_sample_index=6) == 0  # another segment
+    assert session.stale_blocks == 1 and session._band_ahead.late == 1
+    session.reset(default_config())
+    session.band_block([6e-7], segment=1, first_sample_index=0)
+    session.tick()
+    assert sink.samples[-1].segment == 1 and sink.samples[-1].band_velocity == 6e-7
+
+
+def test_rig_in_loop_uses_a_block_one_value_per_tick():
+    sink = Sink()
+    session = sink.session(default_config(), mode="rig_in_loop", per_sample=True)
     session.emit_initial()
     assert session.band_block([1e-7, 2e-7, 3e-7]) == 3
     for _ in range(5):

@@ -12,7 +12,10 @@ from the messages as they are taken, without ROS:
   of the first missing sample;
 - a **duplicate**: a sample taken a second time;
 - **out of order**: a sample that arrives after a later one of its segment (it fills a gap
-  late; counted here, and no longer a gap) or of an older segment after a newer one.
+  late; counted here, and no longer a gap) or of an older segment after a newer one;
+- **skipped** (declared, not a problem): indices the publisher says it never published, just
+  before a message (RigStateBlock.skipped: a realtime plant that fell behind real time and kept
+  it); they are counted apart and listed, and are no gap.
 
 `taken(segment)` is the number of samples of a segment taken in order without gap (0, 1, ... k-1):
 what a flow-control participant reports (FlowProgress.samples). `StreamAccount.problems` gives
@@ -57,6 +60,7 @@ class _Segment:
     missing: list[list[float]] = field(default_factory=list)
     announced: int = 0  # samples the publisher says it published in this segment
     period_ns: float | None = None  # of the blocks (or estimated from consecutive samples)
+    declared: list[Gap] = field(default_factory=list)  # skipped by the publisher
 
 
 def _time_of(span_first: int, stamp_ns: int, period_ns: float | None, index: int) -> int:
@@ -76,15 +80,17 @@ class StreamAccount:
     first_out_of_order: Event | None = None
     segments: dict[int, _Segment] = field(default_factory=dict)
     newest_segment: int = -1
+    skipped: int = 0
 
     def add(self, segment: int, first_index: int, count: int, stamp_ns: int,
-            period_ns: float | None = None) -> None:
+            period_ns: float | None = None, skipped: int = 0) -> None:
         """Samples first_index .. first_index + count - 1 of `segment`, the first at rig time stamp_ns.
 
         period_ns: rig time between the samples of a block (None for one sample per message).
+        skipped: the publisher declares indices first_index - skipped .. first_index - 1 skipped.
         ValueError for a negative segment, index or count.
         """
-        if segment < 0 or first_index < 0 or count < 0:
+        if segment < 0 or first_index < 0 or count < 0 or skipped < 0:
             raise ValueError(
                 f"{self.name}: segment {segment}, first index {first_index}, count {count}: "
                 "expected integers >= 0"
@@ -113,8 +119,15 @@ class StreamAccount:
             t_start = _time_of(first_index, stamp_ns, period_ns, start)
             if period_ns:
                 seg.period_ns = period_ns
-            if start > seg.next_index:  # a jump ahead: the indices in between are missing
-                seg.missing.append(self._new_gap(seg, start, t_start))
+            if start > seg.next_index:  # a jump ahead: the indices in between are missing ...
+                declared = max(seg.next_index, first_index - skipped) if start == first_index else start
+                if declared > seg.next_index:
+                    t_declared = _time_of(first_index, stamp_ns, period_ns, declared)
+                    seg.missing.append(self._new_gap(seg, declared, t_declared))
+                if start > declared:  # ... unless the publisher says it skipped them
+                    t_declared = _time_of(first_index, stamp_ns, period_ns, declared)
+                    seg.declared.append(Gap(segment, declared, start - declared, t_declared))
+                    self.skipped += start - declared
             elif period_ns is None and seg.last_time_ns is not None:
                 seg.period_ns = float(t_start - seg.last_time_ns)  # consecutive samples
             new = stop - start
@@ -167,6 +180,11 @@ class StreamAccount:
         return out
 
     @property
+    def declared_gaps(self) -> list[Gap]:
+        """The gaps the publisher declared (skipped), by segment and index."""
+        return [g for n in sorted(self.segments) for g in self.segments[n].declared]
+
+    @property
     def missing(self) -> int:
         """Samples in gaps."""
         return sum(g.count for g in self.gaps)
@@ -209,6 +227,12 @@ class StreamAccount:
             "missing": self.missing,
             "duplicates": self.duplicates,
             "out_of_order": self.out_of_order,
+            "skipped": self.skipped,
+            "declared_gaps": [
+                {"segment": g.segment, "first_index": g.first_index, "count": g.count,
+                 "rig_time_s": g.rig_time_ns / 1e9}
+                for g in self.declared_gaps
+            ],
             "segments": {
                 str(n): {"samples": s.taken, "last_index": s.next_index - 1, "announced": s.announced}
                 for n, s in sorted(self.segments.items())

@@ -65,6 +65,7 @@ class SampleSpan:
     first_index: int  # sample_index (RigState) or first_sample_index (blocks)
     count: int  # 1 for RigState, the array length for blocks
     period_ns: float | None  # sample_period of a block, ns; None for RigState
+    skipped: int = 0  # RigStateBlock: indices before first_index the plant declared skipped
 
 
 #: Message types whose samples carry an index (sample_index / first_sample_index) and a segment.
@@ -103,4 +104,30 @@ def sample_span(msgtype: str, data: bytes) -> SampleSpan:
         (count,) = u32.unpack_from(data, _align(pos + 20, 4))
     except struct.error as exc:
         raise ValueError(f"{msgtype} payload of {len(data)} bytes is truncated") from exc
-    return SampleSpan(stamp, int(segment), int(first), int(count), float(period) * 1e9)
+    skipped = block_skipped(data, pos + 20) if msgtype == INDEXED_TYPES[1] else 0
+    return SampleSpan(stamp, int(segment), int(first), int(count), float(period) * 1e9, skipped)
+
+
+#: float64[] fields of RigStateBlock before its `skipped` (the 7 sample arrays and `lateness`).
+_BLOCK_ARRAYS = 8
+
+
+def block_skipped(data: bytes, pos: int) -> int:
+    """RigStateBlock.skipped, walking the float64[] fields that start at byte `pos`.
+
+    CDR: each sequence is a uint32 length (aligned to 4) and, when not empty, its elements
+    aligned to 8; `skipped` (uint64) follows, aligned to 8. 0 for a payload that ends before it
+    (a block of a message definition without the field).
+    """
+    u32, u64 = _U32[data[1]], _U64[data[1]]
+    try:
+        for _ in range(_BLOCK_ARRAYS):
+            pos = _align(pos, 4)
+            (n,) = u32.unpack_from(data, pos)
+            pos += 4
+            if n:
+                pos = _align(pos, 8) + 8 * n
+        (skipped,) = u64.unpack_from(data, _align(pos, 8))
+    except struct.error:
+        return 0
+    return int(skipped)

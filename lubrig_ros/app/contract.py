@@ -30,7 +30,20 @@ from ..core.params import CONVENTIONS, RIG_RANGES, ParameterError
 DEFAULT_NAMESPACE = "/lubrig"
 #: Longest namespace ROS 2 accepts (rmw: RMW_NAMESPACE_MAX_NAME_LENGTH; measured with rclpy: 245).
 NAMESPACE_MAX_LENGTH = 245
-MODES: tuple[str, ...] = ("sim", "realtime", "rig_in_loop")
+MODES: tuple[str, ...] = ("sim", "lockstep", "realtime", "rig_in_loop")
+#: Modes whose rig time is the plant's own (advanced by band input), not the wall clock.
+STEPPED_MODES: tuple[str, ...] = ("sim", "lockstep")
+#: What a wall-clock plant does once it is more than max_lag behind real time (app/plant_session.py).
+LAG_POLICIES: tuple[str, ...] = ("skip", "stop")
+DEFAULT_LAG_POLICY = "skip"
+#: s: lateness a wall-clock plant catches up on before it has not held real time.
+DEFAULT_MAX_LAG = 0.02
+#: Samples per state_block in the wall-clock modes (1 kHz: 50 blocks per second).
+DEFAULT_OUTPUT_BLOCK_LENGTH = 20
+#: Exit status of a wall-clock plant (and `lubrig rig`) whose run did not hold real time.
+EXIT_REAL_TIME_NOT_HELD = 3
+#: Band samples belt_drive sends ahead of the realtime plant (its flow_progress).
+DEFAULT_LOOKAHEAD = 200
 
 # ----------------------------------------------------------------------------------- names
 
@@ -184,18 +197,23 @@ def _t(name: str, msgtype: str, qos: QoS, publisher: str, rate: str, unit: str, 
 
 
 TOPICS: tuple[Topic, ...] = (
-    _t("band_velocity", "std_msgs/msg/Float64", STREAM_QOS, "belt_drive (realtime) or external rig software",
+    _t("band_velocity", "std_msgs/msg/Float64", STREAM_QOS, "external rig software (rig_in_loop, lockstep)",
        OUTPUT_RATE, "m/s", "band velocity v_band, one sample per message"),
     _t("band_velocity_block", "lubrig_interfaces/msg/BandVelocityBlock", BLOCK_QOS,
-       "belt_drive (sim) or external rig software", "output rate / block_length", "m/s",
-       "consecutive band velocity samples v_band (sim mode's band input)"),
-    _t("state", "lubrig_interfaces/msg/RigState", STREAM_QOS, "plant (realtime, rig_in_loop)",
+       "belt_drive or external rig software",
+       "sim: output rate / block_length; realtime: one per flow_progress of the plant", "m/s",
+       "consecutive band velocity samples v_band with the sample index of the first (belt_drive: "
+       "sim paced by flow_progress, realtime sent lookahead samples ahead)"),
+    _t("state", "lubrig_interfaces/msg/RigState", STREAM_QOS,
+       "plant (lockstep, realtime, rig_in_loop; state_per_sample)",
        OUTPUT_RATE, "SI", "one output sample of the rig: x, ẋ, μ, friction force, v_band, v_rel, "
        "belt travel, sample_index, segment"),
-    _t("state_block", "lubrig_interfaces/msg/RigStateBlock", BLOCK_QOS, "plant (sim)",
-       "output rate / block_length", "SI", "consecutive output samples of the rig (fields of state)"),
+    _t("state_block", "lubrig_interfaces/msg/RigStateBlock", BLOCK_QOS, "plant (every mode)",
+       "sim, lockstep: one per band block; realtime, rig_in_loop: output rate / output_block_length",
+       "SI", "consecutive output samples of the rig (fields of state); realtime: each sample's "
+       "lateness and the samples skipped behind real time"),
     _t("flow_progress", "lubrig_interfaces/msg/FlowProgress", BLOCK_QOS,
-       "plant (sim), recorder, required consumers", "one per block taken", "1",
+       "plant (every mode), recorder, required consumers", "one per block taken", "1",
        "samples of the current segment a participant has taken; belt_drive paces on the slowest"),
     _t("displacement", "std_msgs/msg/Float64", STREAM_QOS, "plant (scalar_topics true)", OUTPUT_RATE,
        "m", "displacement x of the mass (optional, for simple tools)"),
@@ -280,6 +298,21 @@ def plant_topics(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Topic]:
     """The plant's high-rate topics (PLANT_TOPICS) resolved in `namespace`, keyed by absolute name."""
     resolved = (topic(n).resolved(namespace) for n in PLANT_TOPICS)
     return {t.name: t for t in resolved}
+
+
+#: One message per sample, beside state_block (which carries the same samples): not recorded
+#: from a wall-clock rig by default (`recorded_topics`); `recorder --topics` can add them.
+PER_SAMPLE_TOPICS: tuple[str, ...] = (
+    "state", "band_velocity", "displacement", "velocity", "friction_coefficient",
+)
+
+
+def recorded_topics(mode: str) -> tuple[str, ...]:
+    """Relative names of the topics `lubrig rig` records in `mode` (every documented one in sim)."""
+    names = tuple(t.name for t in TOPICS)
+    if mode in STEPPED_MODES:
+        return names
+    return tuple(n for n in names if n not in PER_SAMPLE_TOPICS)
 
 
 def select_topics(namespace: str, names: list[str] | tuple[str, ...] | None) -> list[Topic]:
@@ -398,8 +431,9 @@ WAIT_FOR_SUBSCRIBER = _p(
 DEFAULT_REALTIME_PRIORITY = 0
 REALTIME_PRIORITY = _p(
     "realtime_priority", "integer", DEFAULT_REALTIME_PRIORITY,
-    "realtime: SCHED_FIFO priority 1..99 of the loop thread so other processes cannot delay its "
-    "ticks; 0 keeps normal scheduling", low=0, high=99,
+    "realtime, rig_in_loop: SCHED_FIFO priority 1..99 of the plant's loop thread alone (where "
+    "the process may; otherwise a warning and normal scheduling); 0 keeps normal scheduling",
+    low=0, high=99,
 )
 #: Band samples per BandVelocityBlock (sim); measured: docs/nodes.md "Block length".
 DEFAULT_BLOCK_LENGTH = 250
@@ -492,7 +526,7 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
     """
     return (
         *RUN_SELECTION,
-        _p("mode", "string", "sim", "sim | realtime | rig_in_loop", choices=MODES),
+        _p("mode", "string", "sim", " | ".join(MODES), choices=MODES),
         _p("sample_rate", "double", None, "output rate", unit="Hz", low=0.0, low_open=True,
            from_config="simulation.sample_rate"),
         _p("duration", "double", None, "run length in rig time (sim mode)", unit="s", low=0.0,
@@ -528,6 +562,20 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
            "an overrun, finished by further calls (the loop stays responsive, stop/pause/reset "
            "and diagnostics run between them) instead of blocking it", unit="attempts", low=1,
            high=1_000_000),
+        _p("lag_policy", "string", DEFAULT_LAG_POLICY,
+           "realtime, rig_in_loop: once more than max_lag behind real time, skip (keep real time: "
+           "integrate the overdue samples with the band values known for them, publish none of "
+           "them, declare the gap in the next state_block) or stop (no more output); ERROR either "
+           "way, and the node exits with status 3 (app/plant_session.py)", choices=LAG_POLICIES),
+        _p("max_lag", "double", DEFAULT_MAX_LAG,
+           "realtime, rig_in_loop: lateness of a sample the plant catches up on; beyond it the rig "
+           "has not held real time (lag_policy)", unit="s", low=0.0, low_open=True, high=10.0),
+        _p("output_block_length", "integer", DEFAULT_OUTPUT_BLOCK_LENGTH,
+           "realtime, rig_in_loop: samples per state_block (the recorder, analysis and live view "
+           "take these; state stays one message per sample)", unit="samples", low=1, high=10_000),
+        _p("state_per_sample", "bool", True,
+           "realtime, rig_in_loop, lockstep: also publish one state (RigState) per sample, for rig "
+           "software in the loop (about 40 us per sample for the plant)"),
         WAIT_FOR_SUBSCRIBER,
         REALTIME_PRIORITY,
         _p("diagnostics_period", "double", 1.0, "time between /diagnostics", unit="s", low=0.0,
@@ -568,12 +616,14 @@ BELT_DRIVE_PARAMETERS: tuple[NodeParameter, ...] = (
        "flow_progress sets the segment and paces the drive"),
     _p("start_delay", "double", 0.5, "wall time to wait once the plant is seen (discovery)", unit="s",
        low=0.0, high=60.0),
+    _p("lookahead", "integer", DEFAULT_LOOKAHEAD,
+       "realtime: band samples sent ahead of the plant's flow_progress, each with its sample index",
+       unit="samples", low=1, high=MAX_BLOCK_LENGTH),
     _p("band_velocity_limit", "double", BAND_VELOCITY_LIMIT,
        "the plant's band_velocity_limit: a profile whose |v_band| exceeds it over the run (the plant "
        "would reject those samples and the run stall) is refused, at start and at run time",
        unit="m/s", low=0.0, low_open=True),
     WAIT_FOR_SUBSCRIBER,
-    REALTIME_PRIORITY,
     _p("profile.kind", "string", None, "band profile kind (constant | cycle | sine | table); run time",
        read_only=False, from_config="band.kind"),
     _p("profile.<field>", "double", None,
@@ -593,6 +643,10 @@ ANALYSIS_PARAMETERS: tuple[NodeParameter, ...] = (
        high=60.0),
     _p("image_width", "integer", 256, "pixels of wavelet_image", low=8, high=4096),
     _p("max_columns", "integer", 64, "newest power columns per wavelet_power message", low=1),
+    _p("per_sample_input", "bool", False,
+       "also take <ns>/state (RigState, one message per sample) for a plant that publishes no "
+       "state_block; the lubrig plant publishes state_block in every mode (1 kHz of RigState "
+       "costs this node about a fifth of a core)"),
 )
 
 NODE_PARAMETERS: dict[str, tuple[NodeParameter, ...]] = {

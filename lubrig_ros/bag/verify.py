@@ -39,6 +39,7 @@ import yaml
 from backports import zstd
 
 from lubrig_ros.app import contract
+from lubrig_ros.app.cdr import block_skipped
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import RUN_CONFIG_KEY, bag_information, find_mcap
 
@@ -93,6 +94,9 @@ class StreamReport:
     backwards: int = 0
     first_backwards_s: float | None = None
     segments: int = 0
+    declared_gaps: int = 0  # RigStateBlock.skipped: the plant fell behind real time
+    skipped: int = 0
+    first_skip_s: float | None = None
 
     def format(self) -> str:
         """`gaps 2 (first at 1.234 s), duplicates 0` or why continuity was not checked."""
@@ -106,6 +110,9 @@ class StreamReport:
             text += f" (first at {self.first_duplicate_s:.6f} s)"
         if self.backwards:
             text += f", backwards {self.backwards} (first at {self.first_backwards_s:.6f} s)"
+        if self.declared_gaps:
+            text += (f", declared gaps {self.declared_gaps} ({self.skipped} samples skipped by the "
+                     f"plant behind real time, first at {self.first_skip_s:.6f} s)")
         return text
 
 
@@ -705,16 +712,19 @@ def _align(pos: int, a: int) -> int:
     return 4 + -(-(pos - 4) // a) * a
 
 
-def _indexed(kind: str, data: bytes) -> tuple[int, int, int, int, float]:
-    """(segment, first index, n, stamp ns, period s) of a RigState or block payload."""
+def _indexed(kind: str, data: bytes, declares: bool = False) -> tuple[int, int, int, int, float, int]:
+    """(segment, first index, n, stamp ns, period s, declared skipped) of a RigState or block payload.
+
+    `declares`: the payload's schema has RigStateBlock.skipped (app.cdr.block_skipped reads it).
+    """
     e, stamp, pos = _cdr_header(data)
     pos = _align(pos, 8)
     if kind == "sample":
         index, segment = struct.unpack_from(e + "QI", data, pos)
-        return segment, index, 1, stamp, 0.0
+        return segment, index, 1, stamp, 0.0, 0
     period, first, segment = struct.unpack_from(e + "dQI", data, pos)
     (n,) = struct.unpack_from(e + "I", data, _align(pos + 20, 4))
-    return segment, first, n, stamp, period
+    return segment, first, n, stamp, period, block_skipped(data, pos + 20) if declares else 0
 
 
 def _per_sample(topic: str) -> bool:
@@ -738,7 +748,8 @@ def _continuity(v: Verification, st: _State, meta: dict[str, object] | None) -> 
         rep = StreamReport(topic, msgtype, len(items))
         v.streams[topic] = rep
         if msgtype in INDEXED_TYPES:
-            _by_index(v, rep, INDEXED_TYPES[msgtype], items)
+            declares = b"skipped" in st.schemas.get(sid, ("?", "", b""))[2]
+            _by_index(v, rep, INDEXED_TYPES[msgtype], items, declares)
         elif msgtype in SPACED_TYPES and _per_sample(topic):
             _by_spacing(v, rep, items, period)
         else:
@@ -763,13 +774,14 @@ def _note(v: Verification, rep: StreamReport, what: str, off: int, t_s: float, t
         v.add(text, off, rep.topic, CONTINUITY)
 
 
-def _by_index(v: Verification, rep: StreamReport, kind: str, items: list[tuple[int, int, bytes]]) -> None:
+def _by_index(v: Verification, rep: StreamReport, kind: str, items: list[tuple[int, int, bytes]],
+              declares: bool = False) -> None:
     rep.method = "by " + ("sample_index" if kind == "sample" else "first_sample_index")
     segment: int | None = None
     expected, last_stamp = 0, -1
     for off, _t, data in items:
         try:
-            seg, first, n, stamp, _period = _indexed(kind, data)
+            seg, first, n, stamp, _period, skipped = _indexed(kind, data, declares)
         except (_BadError, struct.error):
             v.add("message does not decode (sample index unreadable)", off, rep.topic, CONTINUITY)
             continue
@@ -785,9 +797,16 @@ def _by_index(v: Verification, rep: StreamReport, kind: str, items: list[tuple[i
                       f"missing before rig time {t_s:.6f} s")
             segment, expected, last_stamp = seg, first, -1
             rep.segments += 1
-        if first > expected:
-            rep.missing += first - expected
-            _note(v, rep, "gap", off, t_s, f"gap: {first - expected} samples missing before rig time "
+        declared = min(skipped, max(0, first - expected))
+        if declared:  # skipped by the plant (it fell behind real time): shown, not a problem
+            rep.skipped += declared
+            rep.declared_gaps += 1
+            if rep.first_skip_s is None:
+                rep.first_skip_s = t_s
+        if first - declared > expected:
+            missing = first - declared - expected
+            rep.missing += missing
+            _note(v, rep, "gap", off, t_s, f"gap: {missing} samples missing before rig time "
                   f"{t_s:.6f} s (sample {first}, expected {expected})")
         elif first < expected:
             last = min(expected, first + n) - 1

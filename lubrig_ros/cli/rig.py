@@ -30,7 +30,13 @@ import sys
 import time
 from pathlib import Path
 
-from ..app.contract import DEFAULT_NAMESPACE, RECORDER_PARTICIPANT, validate_namespace
+from ..app.contract import (
+    DEFAULT_NAMESPACE,
+    EXIT_REAL_TIME_NOT_HELD,
+    RECORDER_PARTICIPANT,
+    recorded_topics,
+    validate_namespace,
+)
 from ..app.discovery import discovery_environment
 from ..app.rundir import prepare_output_dir
 from ..app.selection import RunSelection
@@ -243,7 +249,10 @@ def recorder_command(
     """
     argv = [_executable("recorder"), "-o", str(bag_dir), "--config", str(run_config)]
     argv += ["--namespace", namespace]
-    return argv + (["--use-sim-time", "--workers", str(SIM_RECORDER_WORKERS)] if mode == "sim" else [])
+    if mode == "sim":
+        return [*argv, "--use-sim-time", "--workers", str(SIM_RECORDER_WORKERS)]
+    # wall clock: state_block holds every sample; the per-sample streams would be written twice
+    return [*argv, "--topics", *recorded_topics(mode)]
 
 
 def _set_aside(bag_dir: Path) -> None:
@@ -257,29 +266,27 @@ def _set_aside(bag_dir: Path) -> None:
     print(f"lubrig rig: previous bag moved to {previous}")
 
 
-def _wait_recorder(proc: subprocess.Popen, log: Path, limit: float = RECORDER_READY_S) -> None:
-    """Wait until the recorder has subscribed (prints "recorder: recording")."""
-    end = time.monotonic() + limit
-    while time.monotonic() < end:
-        if "recorder: recording" in log.read_text(errors="replace"):
-            return
-        if proc.poll() is not None:
-            lines = log.read_text(errors="replace").strip().splitlines()
-            last = lines[-1] if lines else "no output"
-            raise CommandError(f"recorder exited with status {proc.returncode}: {last}")
-        time.sleep(0.05)
-    raise CommandError(f"recorder not ready after {limit:g} s; see {log}")
+#: What each process prints once it is set up (its start line), for `_wait_ready`.
+READY_LINES = {
+    "recorder": "recorder: recording",
+    "view": "view: serving",
+    "belt_drive": "belt_drive: mode=",
+    "analysis": "analysis: window",
+    "plant": "plant: mode=",
+}
 
 
-def _wait_view(proc: subprocess.Popen, log: Path, limit: float = RECORDER_READY_S) -> None:
-    """Wait until the live view serves (prints "view: serving"), so a sim run is seen from its start."""
+def _wait_ready(name: str, proc: subprocess.Popen, log: Path, limit: float = RECORDER_READY_S) -> None:
+    """Wait until process `name` prints its READY_LINES line; CommandError naming it if it exits."""
     end = time.monotonic() + limit
-    while "view: serving" not in log.read_text(errors="replace"):
+    while READY_LINES[name] not in log.read_text(errors="replace"):
         if proc.poll() is not None:
             lines = log.read_text(errors="replace").strip().splitlines()
-            raise CommandError(f"view exited with status {proc.returncode}: {lines[-1] if lines else ''}")
+            errors = [line for line in lines if "ERROR" in line or "FATAL" in line or "error" in line]
+            why = (errors or lines or ["no output"])[0]
+            raise CommandError(f"{name} exited with status {proc.returncode} during start-up: {why}")
         if time.monotonic() > end:
-            raise CommandError(f"view not serving after {limit:g} s; see {log}")
+            raise CommandError(f"{name} not ready after {limit:g} s; see {log}")
         time.sleep(0.05)
 
 
@@ -324,8 +331,6 @@ def run(args: argparse.Namespace) -> int:
             per_node["belt_drive"]["wait_for_subscriber"] = RECORDER_NODE_PREFIX
             if recorder_reports_progress():
                 per_node["belt_drive"]["required_consumers"] = f"['{RECORDER_PARTICIPANT}']"
-        else:
-            per_node["belt_drive"]["start_delay"] = 1.5  # let the nodes discover the recorder
         _set_aside(bag / "bag")
     try:
         if with_recorder:
@@ -337,16 +342,23 @@ def run(args: argparse.Namespace) -> int:
                     stderr=subprocess.STDOUT,
                 )
             if mode != "sim":  # realtime: nothing paces the nodes on the recorder, so it comes first
-                _wait_recorder(procs["recorder"], logs / "recorder.log")
+                _wait_ready("recorder", procs["recorder"], logs / "recorder.log")
         if args.view is not None:  # live view for Foxglove (lubrig view), up before the nodes publish
             with open(logs / "view.log", "w") as log:
                 procs["view"] = subprocess.Popen(
                     [_executable("view"), "--namespace", namespace, "--port", str(args.view)], env=env,
                     stdout=log, stderr=subprocess.STDOUT,
                 )
-            _wait_view(procs["view"], logs / "view.log")
+            _wait_ready("view", procs["view"], logs / "view.log")
             print(f"lubrig rig: live view on ws://127.0.0.1:{args.view} (Foxglove; log {logs / 'view.log'})")
-        for name in NODES:
+        # wall clock: the plant's deadlines start with it, so it starts last, once the others have
+        # done their CPU-bound start-up (imports of several processes on 2 cores would make its
+        # first ticks late); sim: all at once (nothing flows before every participant reports)
+        order = NODES if mode == "sim" else ("belt_drive", "analysis", "plant")
+        for name in order:
+            if name == "plant" and mode != "sim":
+                for other in ("belt_drive", "analysis"):
+                    _wait_ready(other, procs[other], logs / f"{other}.log")
             with open(logs / f"{name}.log", "w") as log:
                 procs[name] = subprocess.Popen(
                     [_executable(name), *_ros_args(per_node[name], params_file, namespace)],
@@ -357,7 +369,9 @@ def run(args: argparse.Namespace) -> int:
         if with_recorder and mode == "sim":
             # sim: plant and belt_drive wait for the recorder's subscriptions and flow_progress, so
             # it starts beside them (start-up is CPU-bound: imports of four processes on 2 cores)
-            _wait_recorder(procs["recorder"], logs / "recorder.log")
+            _wait_ready("recorder", procs["recorder"], logs / "recorder.log")
+        if mode != "sim":  # the run's wall duration counts from the plant's first sample
+            _wait_ready("plant", procs["plant"], logs / "plant.log")
         domain = env.get("ROS_DOMAIN_ID", "0")
         print(
             f"lubrig rig: {config.name} ({mode}, {config.duration:g} s) on ROS_DOMAIN_ID {domain}, "
@@ -395,6 +409,9 @@ def run(args: argparse.Namespace) -> int:
         if "recorder" in procs:
             codes |= stop_all({"recorder": procs["recorder"]}, RECORDER_GRACE_S)
     bad = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT)}
+    late = bad.get("plant") == EXIT_REAL_TIME_NOT_HELD and mode != "sim"
+    if late:
+        del bad["plant"]
     if math.isnan(wall):
         print(f"lubrig rig: interrupted before the run ended; what was recorded is in {bag}")
     else:
@@ -412,7 +429,20 @@ def run(args: argparse.Namespace) -> int:
 
         page = write_report(bag / "bag", bag / "report", force=True)  # inside the checked run folder
         print(f"report: {page}")
+    if late:  # the run is recorded and reported; its timing is what failed
+        print(f"lubrig rig: error: {_real_time_verdict(logs / 'plant.log')}", file=sys.stderr)
+        return EXIT_REAL_TIME_NOT_HELD
     return 130 if math.isnan(wall) else 0  # 128 + SIGINT: interrupted, as a shell reports it
+
+
+def _real_time_verdict(log: Path) -> str:
+    """The plant's own line on why the rig did not hold real time (its last such line)."""
+    lines = log.read_text(errors="replace").splitlines() if log.is_file() else []
+    said = [line for line in lines if "hold real time" in line]
+    if not said:
+        return f"the rig did not hold real time (plant exit status {EXIT_REAL_TIME_NOT_HELD}); see {log}"
+    text = said[-1]
+    return "the rig " + text[text.index("did not hold") :] if "did not hold" in text else text
 
 
 def _positive(text: str) -> float:

@@ -1,7 +1,9 @@
 """analysis node: online wavelet analysis of the plant's displacement and stability flags.
 
-Subscribes to <ns>/state_block (RigStateBlock, sim), <ns>/state (RigState, realtime and rig in
-the loop) and <ns>/band_velocity; every `publish_period` s (wall) the samples received since the
+Subscribes to <ns>/state_block (RigStateBlock: the plant publishes it in every mode, in the
+wall-clock modes one per output_block_length samples) and, with `per_sample_input`, to
+<ns>/state (RigState, one message per sample: for a plant that publishes only those); the band
+velocity comes with each sample. Every `publish_period` s (wall) the samples received since the
 last update go into app.analysis_session.AnalysisSession, and the node publishes what it
 returns: the dominant frequency, the newest wavelet power columns (Float64MultiArray, dims
 ["frequency", "time"], and WaveletFrame with its frequency and time axes), an rgb8 image of the
@@ -17,7 +19,6 @@ from __future__ import annotations
 
 import array
 import math
-from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -93,8 +94,8 @@ class Analysis(Node):
         self.session = AnalysisSession(config, settings)
         self.pubs = {name: create_publisher(self, name) for name in OUTPUTS}
         create_subscription(self, "state_block", self._on_state_block)
-        create_subscription(self, "state", self._on_state)
-        create_subscription(self, "band_velocity", self._on_band)
+        if values["per_sample_input"]:
+            create_subscription(self, "state", self._on_state)
         create_subscription(self, "run_config", self._on_run_config)
         self.create_timer(values["publish_period"], self._tick)
         self.get_logger().info(f"analysis: window {settings.window} samples, {settings.n_scales} scales")
@@ -113,9 +114,6 @@ class Analysis(Node):
         self.session.samples_input(
             msg.displacement, msg.velocity, msg.band_velocity, msg.relative_velocity, newest
         )
-
-    def _on_band(self, msg: Any) -> None:
-        self.session.band_input(msg.data)
 
     def _on_state(self, msg: RigState) -> None:
         self.session.samples_input(

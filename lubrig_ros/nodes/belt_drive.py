@@ -7,8 +7,12 @@ on <ns>/flow_progress (app/flow.py FlowGate; nothing is dropped, nothing skipped
 slows the run). It starts once the plant and every required consumer have reported, follows the
 plant's segment (a plant reset: the profile restarts at t = 0 for the new segment) and stops
 after the configured duration. The global /clock plays no part (two rigs on one domain stay
-apart). `realtime` publishes v_band(t_wall) on <ns>/band_velocity (std_msgs/Float64) at the
-sample rate from a deadline loop. Profile parameters (`profile.*`) can be changed at run time;
+apart). `realtime` sends the band samples ahead of the plant, each with its sample index: on
+every flow_progress of the plant (one per state_block, about 50 per second) the blocks that keep
+`lookahead` samples ahead of it, v_band(k / sample_rate) for sample index k - 1 as in sim mode,
+so the plant's sample k uses the profile at its own rig time whatever the delivery jitter; a
+plant reset restarts the profile for the new segment; no end (the run's wall duration is the
+launcher's). Profile parameters (`profile.*`) can be changed at run time;
 invalid updates are rejected with the reason and the running profile kept.
 """
 
@@ -17,14 +21,12 @@ from __future__ import annotations
 import array
 import copy
 import math
-import threading
 import time
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from std_msgs.msg import Float64
 
 from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
 
@@ -59,7 +61,6 @@ class BeltDrive(Node):
         self.flow_window, self.start_delay = values["flow_window"], values["start_delay"]
         self.block_length = values["block_length"]
         self.wait_for_subscriber = values["wait_for_subscriber"]
-        self.realtime_priority = values["realtime_priority"]
         # profile.* parameters: every registered kind's fields (core.profiles.ProfileParameters),
         # defaults from the selected configuration's band section.
         self.profile_parameters = ProfileParameters(config.band)
@@ -95,8 +96,6 @@ class BeltDrive(Node):
         self.segment: int | None = None
         self.seen_at: float | None = None
         self.started = False
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         if self.mode == "sim":
             problem = flow_window_problem(self.flow_window, self.block_length)
             if problem is not None:
@@ -116,10 +115,16 @@ class BeltDrive(Node):
                 f"block_length {self.block_length}, flow_window {self.flow_window}"
             )
         else:
-            self.publisher = create_publisher(self, "band_velocity")
-            common.enter_realtime(self.realtime_priority, self)
-            self._thread = threading.Thread(target=self._realtime_loop, daemon=True)
-            self._thread.start()
+            namespace = self.get_namespace()
+            self.lookahead = values["lookahead"]
+            self.plant = qualified_name(namespace, values["plant_node"])
+            self.publisher = create_publisher(self, "band_velocity_block")
+            self._block = BandVelocityBlock()
+            self._block.sample_period = 1.0 / self.sample_rate
+            create_subscription(self, "flow_progress", self._on_realtime_progress)
+            self.get_logger().info(
+                f"realtime: band samples {self.lookahead} ahead of {self.plant} (its flow_progress)"
+            )
         self.get_logger().info(
             f"belt_drive: mode={self.mode}, {self.sample_rate:g} Hz, profile {profile_to_dict(self.profile)}"
         )
@@ -179,10 +184,6 @@ class BeltDrive(Node):
     def _band_problem(self, profile: BandProfile) -> str | None:
         """Cross-check with the plant: the profile over the run within band_velocity_limit."""
         return band_range_problem(profile, self.sample_rate, self.duration, self.band_velocity_limit)
-
-    def _sample(self, k: int) -> float:
-        value = float(self.profile(k / self.sample_rate))
-        return value if common.finite(value) else 0.0
 
     def _on_progress(self, msg: FlowProgress) -> None:
         if not self.gate.report(msg.participant, int(msg.segment), int(msg.samples)):
@@ -248,26 +249,33 @@ class BeltDrive(Node):
         values = np.asarray(self.profile(k / self.sample_rate), dtype=float)
         return np.where(np.isfinite(values), values, 0.0)
 
-    def _realtime_loop(self) -> None:
-        loop = common.DeadlineLoop(1.0 / self.sample_rate)
-        msg = Float64()
-        k = 0
-        while not self._stop.is_set():
-            loop.wait(k)
-            msg.data = self._sample(k)
-            try:
-                self.publisher.publish(msg)
-            except Exception as exc:
-                if not self._stop.is_set() and self.context.ok():
-                    self.get_logger().fatal(f"real-time loop stopped: {exc!r}")
-                return
-            k += 1
-
-    def close(self) -> None:
-        """Stop the realtime thread."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=1.0)
+    def _on_realtime_progress(self, msg: FlowProgress) -> None:
+        """Realtime: the plant's next sample is msg.samples; keep `lookahead` band samples ahead."""
+        if msg.participant != self.plant:
+            return
+        segment, needed = int(msg.segment), int(msg.samples)  # next output sample: band index - 1
+        if segment != self.segment:
+            if self.segment is not None:
+                self.get_logger().info(f"plant segment {segment}: profile restarts at t = 0")
+            self.segment, self.next_k = segment, 1
+        # band index j = k - 1 integrates the plant's sample k; the plant needs index needed - 1
+        # next. Every index is sent once, in order, from 0: those the plant has passed are late
+        # (it counts them) but the band stream stays whole.
+        first_k = self.next_k
+        last_k = needed + self.lookahead - 1
+        if last_k < first_k:
+            return
+        k = np.arange(first_k, last_k + 1, dtype=float)
+        msg_out = self._block
+        due = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec  # of the plant's sample needed - 1
+        msg_out.header.stamp.sec, msg_out.header.stamp.nanosec = cdr.stamp_of(
+            due + (first_k - needed + 1) / self.sample_rate
+        )
+        msg_out.segment = segment
+        msg_out.first_sample_index = first_k - 1
+        msg_out.band_velocity = _doubles(self._samples(k))
+        self.publisher.publish(msg_out)
+        self.next_k = last_k + 1
 
 
 def main(args: list[str] | None = None) -> int:

@@ -217,7 +217,11 @@ class ProblemLog:
                 continue
             if previous is None or previous[0] != shape or now - previous[1] >= self.every:
                 log = self.node.get_logger()
-                (log.error if status.level == "error" else log.warning)(f"{status.name}: {status.message}")
+                text = f"{status.name}: {status.message}"
+                if status.level == "error":  # one call site per severity (rclpy's rule)
+                    log.error(text)
+                else:
+                    log.warning(text)
                 self.last[status.name] = (shape, now)
 
 
@@ -234,25 +238,26 @@ def diagnostic_status(status: Status, node: Node) -> DiagnosticStatus:
     return msg
 
 
-def enter_realtime(priority: int, node: Node) -> None:
-    """Put every thread of this process under SCHED_FIFO; without the privilege, warn and go on.
+def enter_realtime(priority: int, node: Node) -> bool:
+    """Put the calling thread (a real-time loop) under SCHED_FIFO `priority`; True if it took.
 
-    All threads, not only the loop: the loop needs the GIL, and a normal-priority thread that
-    holds it while preempted by another process would delay the loop by a whole time slice
-    (priority inversion; measured up to 18 ms late ticks). Threads started later inherit it.
+    Only that thread: the node's executor thread and every other process keep normal scheduling,
+    so a busy node cannot starve the machine. Without the privilege (CAP_SYS_NICE or an rtprio
+    limit) it says so and goes on with normal scheduling. 0: normal scheduling, nothing said.
     """
     if priority <= 0:
-        return
+        return False
     try:
-        for tid in os.listdir("/proc/self/task"):
-            os.sched_setscheduler(int(tid), os.SCHED_FIFO, os.sched_param(priority))
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except (PermissionError, OSError, AttributeError) as exc:
         node.get_logger().warning(
-            f"realtime_priority={priority}: SCHED_FIFO not available ({exc}); ticks may be late "
-            "under load (grant CAP_SYS_NICE or an rtprio limit, or set realtime_priority:=0)"
+            f"realtime_priority={priority}: SCHED_FIFO not available ({exc}); the loop thread runs "
+            "with normal scheduling (grant CAP_SYS_NICE or an rtprio limit, or set realtime_priority:=0)"
         )
-        return
+        return False
+    node.get_logger().info(f"realtime_priority={priority}: loop thread under SCHED_FIFO")
     gc.freeze()  # objects made so far are never scanned again: shorter collector pauses
+    return True
 
 
 def subscribed_by(node: Node, topics: Iterable[str], prefix: str) -> bool:
@@ -314,6 +319,7 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
             close = getattr(node, "close", None)
             if close is not None:
                 close()
+            status = status or int(getattr(node, "exit_status", 0))
         name = node.get_name() if node is not None else "lubrig"
         with bounded_teardown(name, lambda: status):
             if node is not None:

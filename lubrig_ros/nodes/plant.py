@@ -1,29 +1,40 @@
 """plant node: the rig (app.plant_session.PlantSession) on ROS topics.
 
-Band input in every mode: <ns>/band_velocity_block (lubrig_interfaces/BandVelocityBlock, what
-belt_drive sends in sim mode) and <ns>/band_velocity (std_msgs/Float64, one value per message:
-belt_drive in realtime, foreign rig software). Modes sim | realtime | rig_in_loop; their rules
-live in app/plant_session.py (unit-tested without DDS):
+Band input in every mode: <ns>/band_velocity_block (lubrig_interfaces/BandVelocityBlock: what
+belt_drive sends, with the sample index of each value) and <ns>/band_velocity (std_msgs/Float64,
+one value per message: foreign rig software). Modes sim | lockstep | realtime | rig_in_loop;
+their rules live in app/plant_session.py (unit-tested without DDS):
 
 * sim integrates every band block in order with the core stepper (equal to core.run.simulate
   whatever the block length) and publishes one <ns>/state_block (RigStateBlock) per band block,
   then <ns>/flow_progress (FlowProgress: this node's fully qualified name, segment, samples
   published in the segment) that paces belt_drive (app/flow.py); with `publish_clock` also
   /clock per block and as a 5 Hz heartbeat. Stamps are rig time.
-* realtime / rig_in_loop tick from a deadline loop with the latest good band value and publish
-  one <ns>/state (RigState) per sample, stamped with the node clock (ROS time).
+* lockstep is sim for rig software that answers each state: the initial state at once, then one
+  sample per band value, each as <ns>/state (RigState, rig-time stamp) and in state_block; a
+  state not answered within the heartbeat period is published again (the answer to a repeated
+  state is dropped by its sample index).
+* realtime / rig_in_loop tick from a deadline loop on a thread of their own: one <ns>/state per
+  sample (state_per_sample; stamped with the node clock when it was computed), and one
+  <ns>/state_block per output_block_length samples (stamp: the due time of its first sample,
+  node clock; each sample's lateness; a declared gap in `skipped`), followed by flow_progress,
+  which belt_drive follows to send band samples ahead. Falling behind real time: lag_policy.
 
 `scalar_topics` adds std_msgs/Float64 displacement, velocity and friction_coefficient per
 sample. A reset (<ns>/plant/reset) starts a new segment at t = 0 and reports it on flow_progress
-at once; <ns>/plant/pause pauses. Topics, QoS, parameters: app/contract.py.
+at once; <ns>/plant/pause pauses. Exit status 3 (EXIT_REAL_TIME_NOT_HELD) when a wall-clock run
+did not hold real time. Topics, QoS, parameters: app/contract.py.
 """
 
 from __future__ import annotations
 
 import array
 import functools
+import os
+import signal
 import sys
 import threading
+import time
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -37,6 +48,7 @@ from std_srvs.srv import SetBool, Trigger
 from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress, RigState, RigStateBlock
 
 from ..app import cdr, contract
+from ..app.plant_output import BLOCK_FIELDS
 from ..app.plant_session import (
     PlantBlock,
     PlantSample,
@@ -53,10 +65,8 @@ from . import common
 from .interfaces import create_publisher, create_service, create_subscription, report_callers
 
 HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
-BLOCK_FIELDS = (
-    "displacement", "velocity", "friction_coefficient", "friction_force", "band_velocity",
-    "relative_velocity", "belt_travel",
-)
+#: Exit status of a wall-clock plant that did not hold real time (lag_policy skip or stop).
+EXIT_REAL_TIME_NOT_HELD = contract.EXIT_REAL_TIME_NOT_HELD
 
 
 def _doubles(values: np.ndarray) -> array.array:
@@ -84,22 +94,23 @@ class Plant(Node):
             self, contract.plant_parameters(law), parameter_defaults(base, law)
         )
         self.mode = values["mode"]
+        self.wall_clock = self.mode not in contract.STEPPED_MODES
         self.wait_for_subscriber = values["wait_for_subscriber"]
         self.scalar_topics = bool(values["scalar_topics"])
         self.publish_clock = bool(values["publish_clock"]) and self.mode == "sim"
+        self.exit_status = 0
         if values["publish_clock"] and self.mode != "sim":
             self.get_logger().warning("publish_clock applies to sim mode only; no /clock published")
         settings = PlantSettings(
             values["mode"], values["band_velocity_limit"], values["stale_timeout"],
-            values["tick_step_attempts"],
+            values["tick_step_attempts"], values["lag_policy"], values["max_lag"],
+            values["output_block_length"],
         )
         self.participant = self.get_fully_qualified_name()
-        if self.mode == "sim":
-            self.pub_block = create_publisher(self, "state_block")
-            self.pub_progress = create_publisher(self, "flow_progress")
-            self.pub_state = None
-        else:
-            self.pub_state = create_publisher(self, "state")
+        self.pub_block = create_publisher(self, "state_block")
+        self.pub_progress = create_publisher(self, "flow_progress")
+        per_sample_state = self.mode != "sim" and bool(values["state_per_sample"])
+        self.pub_state = create_publisher(self, "state") if per_sample_state else None
         self.pub_scalars = (
             tuple(create_publisher(self, n) for n in ("displacement", "velocity", "friction_coefficient"))
             if self.scalar_topics else ()
@@ -109,10 +120,16 @@ class Plant(Node):
         self.pub_config = create_publisher(self, "run_config")
         self.pub_complete = create_publisher(self, "run_complete")
         self._state_msg = RigState()
+        self._block_msg = RigStateBlock()
+        self._progress_msg = FlowProgress()
+        self._progress_msg.participant = self.participant
         self._scalar_msgs = (Float64(), Float64(), Float64())
         self._clock_msg = Clock()
-        self._announced = False  # sim: first flow_progress sent (the awaited subscriber is there)
-        per_sample = self.mode != "sim" or self.scalar_topics
+        self._announced = False  # stepped: first flow_progress sent (the awaited subscriber is there)
+        self._state_sent = 0.0  # lockstep: monotonic time the newest state was published
+        # wall-clock stamps: the node clock at a session clock() time (both advance at the same rate)
+        self._clock_offset_ns = self.get_clock().now().nanoseconds - time.monotonic_ns()
+        per_sample = self.pub_state is not None or self.scalar_topics
         self.session = PlantSession(
             base,
             settings,
@@ -120,6 +137,7 @@ class Plant(Node):
             on_sample=self._publish_sample if per_sample else _nothing,
             on_block=self._publish_block,
             on_complete=lambda done: self.pub_complete.publish(Bool(data=done)),
+            on_fault=self._on_fault,
             log=self._log,
         )
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -131,23 +149,28 @@ class Plant(Node):
         create_subscription(self, "band_velocity_block", self._on_band_block)
         for name, callback in (("plant/reset", self._on_reset), ("plant/pause", self._on_pause)):
             service = create_service(self, name, callback)
-            # every reset/pause is logged with its caller (issue 11); rclpy does not tell the callback
+            # every reset/pause is logged with its caller; rclpy does not tell the callback
             report_callers(self, service, functools.partial(self._log_caller, service.service_name))
         self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
         self._stop = threading.Event()
         self._log_problems = common.ProblemLog(self)  # warn/error statuses also to the log
         self._thread: threading.Thread | None = None
-        if self.mode == "sim":
-            self.create_timer(HEARTBEAT_S, self._heartbeat)
-        else:
+        config = self.session.config
+        if self.wall_clock:
             sys.setswitchinterval(2e-4)  # let the loop thread take the GIL promptly
-            common.enter_realtime(values["realtime_priority"], self)
             self._thread = threading.Thread(target=self._realtime_loop, daemon=True)
             self._thread.start()
-        config = self.session.config
+            runs = (
+                f"{1e3 * self.session.period:g} ms per sample, state_block every "
+                f"{settings.output_block_length} samples, lag_policy {settings.lag_policy} "
+                f"beyond {1e3 * settings.max_lag:g} ms"
+            )
+        else:
+            self.create_timer(HEARTBEAT_S, self._heartbeat)
+            runs = f"{config.samples} samples per run"
         self.get_logger().info(
             f"plant: mode={self.mode}, {config.sample_rate:g} Hz, {config.rig.coupling_label}, "
-            f"friction law {law}, {config.samples} samples per run (sim)"
+            f"friction law {law}, {runs}"
         )
 
     def _on_band_raw(self, data: bytes) -> None:
@@ -159,7 +182,14 @@ class Plant(Node):
         self.session.band_block(msg.band_velocity, int(msg.segment), int(msg.first_sample_index))
 
     def _log(self, level: str, text: str) -> None:
-        getattr(self.get_logger(), level)(text)
+        # one call site per severity: rclpy refuses a call site whose severity changes
+        logger = self.get_logger()
+        if level == "error":
+            logger.error(text)
+        elif level == "warning":
+            logger.warning(text)
+        else:
+            logger.info(text)
 
     def _config_values(self) -> dict[str, object]:
         return {name: self.get_parameter(name).value for name in self.config_names}
@@ -184,8 +214,8 @@ class Plant(Node):
             self.session.reset(config)
             segment = self.session.segment
             self.pub_config.publish(String(data=config.to_yaml()))
-            if self.mode == "sim" and self._announced:
-                self._publish_progress()  # belt_drive restarts its profile for the new segment
+            if self.wall_clock or self._announced:  # belt_drive restarts its profile for the new segment
+                self._publish_progress(self._now_s() if self.wall_clock else self.session.time)
         self.get_logger().info(f"reset: rig time back to 0, segment {segment}")
         response.success = True
         response.message = f"rig reset to t = 0 and the initial state; segment {segment}"
@@ -200,28 +230,38 @@ class Plant(Node):
         return response
 
     def _heartbeat(self) -> None:
-        """Sim: republish flow_progress (and /clock) so that a late belt_drive sees where we are.
+        """Stepped modes: republish flow_progress (and /clock) so that a late belt_drive sees where we are.
 
         Until the awaited subscriber (the recorder) has subscribed to every output, the plant stays
         silent, so belt_drive does not start and no sample is published before it is recorded.
+        Lockstep: the initial state once announced, and the newest state again while unanswered.
         """
         if not self._announced:
             outputs = [self.pub_block, *self.pub_scalars]
+            if self.pub_state is not None:
+                outputs.append(self.pub_state)
             if self.pub_clock is not None:
                 outputs.append(self.pub_clock)
             if not common.subscribed_by(self, [p.topic_name for p in outputs], self.wait_for_subscriber):
                 return
             self._announced = True
-            self.get_logger().info(f"sim: flow_progress as {self.participant}")
+            self.get_logger().info(f"{self.mode}: flow_progress as {self.participant}")
+            if self.mode == "lockstep":
+                self.session.emit_initial()
         with self.session.lock:
-            self._publish_progress()
+            self._publish_progress(self.session.time)
             if self.pub_clock is not None:
                 self._publish_clock(self.session.time)
+            unanswered = time.monotonic() - self._state_sent >= HEARTBEAT_S
+            lockstep = self.mode == "lockstep" and not self.session.complete
+            if lockstep and self.pub_state is not None and unanswered:
+                self.pub_state.publish(self._state_msg)  # the answer may have been lost
+                self._state_sent = time.monotonic()
 
-    def _publish_progress(self) -> None:
-        msg = FlowProgress()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = cdr.stamp_of(self.session.time)
-        msg.participant = self.participant
+    def _publish_progress(self, t: float) -> None:
+        """flow_progress: samples published in the segment; stamp t (rig time, or node time in s)."""
+        msg = self._progress_msg
+        msg.header.stamp.sec, msg.header.stamp.nanosec = cdr.stamp_of(t)
         msg.segment = self.session.segment
         msg.samples = self.session.published
         self.pub_progress.publish(msg)
@@ -232,22 +272,39 @@ class Plant(Node):
         if self.pub_clock is not None:
             self.pub_clock.publish(clock)
 
+    def _now_s(self) -> float:
+        return float(self.get_clock().now().nanoseconds) * 1e-9
+
+    def _wall_time(self, due: float) -> float:
+        """Node-clock time (s) of a session clock() time (wall-clock modes)."""
+        return (self._clock_offset_ns + due * 1e9) * 1e-9
+
+    def _block_start(self, block: PlantBlock) -> float:
+        """Stamp of a block's first sample: rig time (stepped), its due time on the node clock (else)."""
+        if not self.wall_clock:
+            return float(block.time[0])
+        start = self.session.segment_start or 0.0
+        return self._wall_time(start + block.first_sample_index * block.sample_period)
+
     def _publish_block(self, block: PlantBlock) -> None:
-        """Sim: one RigStateBlock, then flow_progress and /clock (called with the session lock)."""
-        msg = RigStateBlock()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = cdr.stamp_of(float(block.time[0]))
+        """One RigStateBlock, then flow_progress and /clock (called with the session lock)."""
+        msg = self._block_msg
+        first = self._block_start(block)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = cdr.stamp_of(first)
         msg.sample_period = block.sample_period
         msg.first_sample_index = block.first_sample_index
         msg.segment = block.segment
         for name in BLOCK_FIELDS:
             setattr(msg, name, _doubles(getattr(block, name)))
+        msg.lateness = _doubles(block.lateness)
+        msg.skipped = block.skipped
         self.pub_block.publish(msg)
-        self._publish_progress()
+        self._publish_progress(first + (len(block) - 1) * block.sample_period)
         if self.pub_clock is not None:
             self._publish_clock(float(block.time[-1]))
 
     def _publish_sample(self, s: PlantSample) -> None:
-        """Realtime: one RigState per sample (node clock stamp); scalar topics if asked (all modes)."""
+        """One RigState per sample (wall-clock modes: node clock now; lockstep: rig time); scalars."""
         if self.scalar_topics:
             mx, mv, mmu = self._scalar_msgs
             mx.data, mv.data, mmu.data = s.displacement, s.velocity, s.friction_coefficient
@@ -256,7 +313,10 @@ class Plant(Node):
         if self.pub_state is None:
             return
         state = self._state_msg
-        state.header.stamp = self.get_clock().now().to_msg()
+        if self.wall_clock:
+            state.header.stamp = self.get_clock().now().to_msg()
+        else:
+            state.header.stamp.sec, state.header.stamp.nanosec = cdr.stamp_of(s.time)
         state.sample_index = s.sample_index
         state.segment = s.segment
         state.displacement, state.velocity = s.displacement, s.velocity
@@ -264,13 +324,25 @@ class Plant(Node):
         state.band_velocity, state.relative_velocity = s.band_velocity, s.relative_velocity
         state.belt_travel = s.belt_travel
         self.pub_state.publish(state)
+        self._state_sent = time.monotonic()
 
     def _realtime_loop(self) -> None:
+        priority = int(self.get_parameter("realtime_priority").value)
+        common.enter_realtime(priority, self)  # this thread only
         try:
             self.session.run_realtime(self._stop.is_set)
         except Exception as exc:
             if not self._stop.is_set() and self.context.ok():
                 self.get_logger().fatal(f"real-time loop stopped: {exc!r}")
+                self.exit_status = 1
+                os.kill(os.getpid(), signal.SIGINT)  # the node ends (spin_node) instead of idling
+
+    def _on_fault(self, reason: str) -> None:
+        """lag_policy stop: the rig stopped; the node ends with EXIT_REAL_TIME_NOT_HELD."""
+        self.exit_status = EXIT_REAL_TIME_NOT_HELD
+        self.get_logger().fatal(f"{reason}; stopping (lag_policy stop)")
+        self._publish_diagnostics()
+        os.kill(os.getpid(), signal.SIGINT)
 
     def _publish_diagnostics(self) -> None:
         array = DiagnosticArray()
@@ -281,10 +353,19 @@ class Plant(Node):
         self._log_problems.log(statuses)
 
     def close(self) -> None:
-        """Stop the loop thread."""
+        """Stop the loop thread; a run that did not hold real time sets the exit status."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=1.0)
+        session = self.session
+        if self.wall_clock and not session.held_real_time:
+            self.exit_status = self.exit_status or EXIT_REAL_TIME_NOT_HELD
+            self.get_logger().error(
+                f"the rig did not hold real time: {session.skipped} samples skipped in "
+                f"{session.skip_events} gaps, worst lateness {1e3 * session.max_late:.1f} ms "
+                f"(max_lag {1e3 * session.settings.max_lag:g} ms, lag_policy "
+                f"{session.settings.lag_policy}); exit status {self.exit_status}"
+            )
 
 
 def main(args: list[str] | None = None) -> int:

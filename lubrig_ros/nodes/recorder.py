@@ -376,7 +376,9 @@ class Recorder:
         except ValueError:
             self.malformed[topic.spec.name] = self.malformed.get(topic.spec.name, 0) + 1
             return
-        topic.account.add(span.segment, span.first_index, span.count, span.stamp_ns, span.period_ns)
+        topic.account.add(
+            span.segment, span.first_index, span.count, span.stamp_ns, span.period_ns, span.skipped
+        )
         if topic.spec.name == self.state_block:
             self.report_progress(span.segment, topic.account.taken(span.segment))
 
@@ -680,6 +682,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"recorder: samples {name}: {account.samples} in {account.messages} messages, "
               f"{account.missing} missing, {account.duplicates} duplicates, "
               f"{account.out_of_order} out of order", flush=True)
+        if account.skipped:
+            gaps = account.declared_gaps
+            print(f"recorder: {name}: {account.skipped} samples skipped by the plant in "
+                  f"{len(gaps)} declared gap(s) (it fell behind real time); first: {gaps[0].count} "
+                  f"from index {gaps[0].first_index} of segment {gaps[0].segment}", flush=True)
     with contextlib.suppress(OSError):
         recorder.write_accounting()
     problems = recorder.problems()
