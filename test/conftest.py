@@ -10,6 +10,8 @@ Fixtures (implementation in test/support/lubrig_testkit/harness.py, shared with 
 - ``probe``: an rclpy node on ``ros_domain`` that records what it subscribes to and waits on
   conditions (``probe.wait_for(predicate, timeout)``); the timeouts only guard against a hang.
 - ``ros_module_domain``: a domain held for a whole module (for a module-scoped expensive run).
+- ``cpu_hogs``: ``cpu_hogs(2)`` starts two busy processes beside the test (killed at its end),
+  for tests that assert behaviour on a loaded machine (status, exit code, every sample; never a rate).
 
 Tiers: a test that uses one of these fixtures is marked ``ros`` automatically (a module may also
 set ``pytestmark = pytest.mark.ros``); long runs are marked ``slow``. ``make test-fast`` runs
@@ -18,7 +20,9 @@ set ``pytestmark = pytest.mark.ros``); long runs are marked ``slow``. ``make tes
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import subprocess
+import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -68,6 +72,22 @@ def probe(ros_domain: int) -> Iterator[Probe]:
 
 
 @pytest.hookimpl(tryfirst=True)  # before -m deselects
+@pytest.fixture
+def cpu_hogs() -> Iterator[Callable[[int], None]]:
+    """cpu_hogs(n): start n busy processes (`python3 -c 'while True: pass'`) for this test."""
+    hogs: list[subprocess.Popen] = []
+
+    def start(n: int) -> None:
+        hogs.extend(subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n))
+
+    try:
+        yield start
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Mark every test that uses a ROS fixture `ros`."""
     for item in items:

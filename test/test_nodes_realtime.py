@@ -3,8 +3,9 @@
 Nothing here asserts a wall-clock rate: how well the plant keeps its deadlines on a loaded machine
 is a benchmark figure (bench/bench_realtime.py). The tests assert what is published: one RigState
 per sample (sample_index 0, 1, 2, … = rig time / 1 ms within a segment), in order, stamped with
-ROS time (within a second of the wall clock), rig time never ahead of the wall clock, the plant's
-own counts; a reset starts segment 1 at sample 0.
+ROS time (within a second of the wall clock), rig time never ahead of the wall clock, the same
+samples in state_block (with each one's lateness), band samples sent ahead by belt_drive with
+their sample indices, the plant's own counts; a reset starts segment 1 at sample 0.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import Float64, Float64MultiArray, UInt8
 from std_srvs.srv import SetBool, Trigger
 
-from lubrig_interfaces.msg import RigState, StabilityFlags, WaveletFrame
+from lubrig_interfaces.msg import BandVelocityBlock, RigState, RigStateBlock, StabilityFlags, WaveletFrame
 
 NS = "/lubrig"
 
@@ -45,8 +46,9 @@ def _timing_reports(probe) -> list[dict[str, str]]:
 
 def test_realtime_steps_parameters_services_analysis(procs, probe):
     for name, msg_type in (
-        ("band_velocity", Float64),
+        ("band_velocity_block", BandVelocityBlock),
         ("state", RigState),
+        ("state_block", RigStateBlock),
         ("wavelet_power", Float64MultiArray),
         ("wavelet_frame", WaveletFrame),
         ("stability", StabilityFlags),
@@ -59,9 +61,9 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     procs.node("plant", mode="realtime", diagnostics_period=0.2)
     procs.node("belt_drive", mode="realtime")
     procs.node("analysis", window=256, n_scales=16, publish_period=0.2)
-    state, band = f"{NS}/state", f"{NS}/band_velocity"
+    state, band, blocks = f"{NS}/state", f"{NS}/band_velocity_block", f"{NS}/state_block"
     assert probe.wait_for_count(state, 1000, 180), procs.logs()
-    assert probe.wait_for_count(band, 500, 60), procs.logs()
+    assert probe.wait_for_count(band, 10, 60), procs.logs()
     elapsed = time.monotonic() - started
     states = list(probe.messages[state])
     # one state per 1 ms of rig time, in order: sample indices strictly increasing in segment 0
@@ -77,14 +79,33 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     assert wall_start - 1.0 <= stamps[0] and stamps[-1] <= time.time() + 1.0, (wall_start, stamps[[0, -1]])
     # paced by the wall clock: rig time is never ahead of it (a lagging plant is a bench figure)
     assert index[-1] / 1000 <= elapsed, (index[-1], elapsed)
-    assert len(probe.messages[band]) <= 1000 * elapsed + 1
-    # the belt drive's default profile: a constant 1e-7 m/s, every sample
-    assert {m.data for m in probe.messages[band]} == {1e-7}
-    # the plant's own accounting: one sample per 1 ms of rig time
+    # the belt drive's default profile, a constant 1e-7 m/s, sent ahead: every band index once, in
+    # order from 0, each block within lookahead (200) samples of where the plant was
+    sent = list(probe.messages[band])
+    firsts = [m.first_sample_index for m in sent]
+    assert firsts[0] == 0 and all(
+        b.first_sample_index == a.first_sample_index + len(a.band_velocity) for a, b in itertools.pairwise(sent)
+    ), firsts[:10]
+    assert {v for m in sent for v in m.band_velocity} == {1e-7} and {m.segment for m in sent} == {0}
+    assert sent[-1].first_sample_index + len(sent[-1].band_velocity) <= index[-1] + 1000
+    # state_block: the same samples as state, in blocks of output_block_length (20), each sample
+    # with its lateness (>= 0, finite), the initial state alone in the first block
+    got = list(probe.messages[blocks])
+    assert got[0].first_sample_index == 0 and len(got[0].displacement) == 1
+    assert all(len(m.lateness) == len(m.displacement) for m in got)
+    assert all(math.isfinite(v) and v >= 0 for m in got for v in m.lateness)
+    assert {len(m.displacement) for m in got[1:-1]} <= {20}
+    by_index = {m.sample_index: m for m in states}
+    for m in got[:20]:
+        for i, x in enumerate(m.displacement):
+            if m.first_sample_index + i in by_index:
+                assert by_index[m.first_sample_index + i].displacement == x
+    # the plant's own accounting: one sample per 1 ms of rig time (skipped ones included)
     assert probe.wait_for(lambda: _timing_reports(probe), 10), procs.log("plant")
     report = _timing_reports(probe)[-1]
     # (the report may be read between a tick's publish and its count: one tick short at most)
-    assert 0 <= round(float(report["rig_time_s"]) * 1000) - int(report["samples"]) <= 1, report
+    ticks = int(report["samples"]) + int(report["skipped_samples"])
+    assert 0 <= round(float(report["rig_time_s"]) * 1000) - ticks <= 1, report
     assert report["integration_errors"] == "0"
     # analysis outputs
     assert probe.wait_for(lambda: probe.messages[f"{NS}/wavelet_power"], 60), procs.log("analysis")
@@ -116,18 +137,19 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     # a valid parameter update changes the running profile
     result = probe.set_parameter("lubrig/belt_drive", "profile.velocity", 3e-7)
     assert result.successful, result.reason
-    assert probe.wait_for(lambda: probe.messages[band][-1].data == 3e-7, 10)
+    assert probe.wait_for(lambda: probe.messages[band][-1].band_velocity[-1] == 3e-7, 10)
+    assert probe.wait_for(lambda: probe.messages[state][-1].band_velocity == 3e-7, 10)
     # invalid updates are rejected with their reason; the profile is untouched
     result = probe.set_parameter("lubrig/belt_drive", "profile.kind", "sawtooth")
     assert not result.successful and "sawtooth" in result.reason and "constant" in result.reason
     result = probe.set_parameter("lubrig/belt_drive", "profile.velocity", float("nan"))
     assert not result.successful and "finite" in result.reason
-    assert probe.wait_for_more(band, 200, 10)  # samples published after the rejected updates
-    assert probe.messages[band][-1].data == 3e-7
+    assert probe.wait_for_more(band, 20, 10)  # samples published after the rejected updates
+    assert probe.messages[band][-1].band_velocity[-1] == 3e-7
     # switch kind: a sine with its defaults
     result = probe.set_parameter("lubrig/belt_drive", "profile.kind", "sine")
     assert result.successful, result.reason
-    assert probe.wait_for(lambda: probe.messages[band][-1].data != 3e-7, 10)
+    assert probe.wait_for(lambda: probe.messages[band][-1].band_velocity[-1] != 3e-7, 10)
 
     # pause stops the plant: rig time stands still in its reports, no later state is published
     reply = probe.call(SetBool, f"{NS}/plant/pause", SetBool.Request(data=True))

@@ -237,9 +237,7 @@ class Plant(Node):
         Lockstep: the initial state once announced, and the newest state again while unanswered.
         """
         if not self._announced:
-            outputs = [self.pub_block, *self.pub_scalars]
-            if self.pub_state is not None:
-                outputs.append(self.pub_state)
+            outputs = [self.pub_block, *self.pub_scalars]  # state is for rig software, not recorded
             if self.pub_clock is not None:
                 outputs.append(self.pub_clock)
             if not common.subscribed_by(self, [p.topic_name for p in outputs], self.wait_for_subscriber):
