@@ -35,7 +35,6 @@ def node(monkeypatch: pytest.MonkeyPatch) -> Iterator[object]:
         yield drive
     finally:
         if drive is not None:
-            drive.close()
             drive.destroy_node()
         rclpy.shutdown()
         unregister_profile("square")

@@ -44,7 +44,7 @@ def test_nodes_in_a_namespace_with_a_relative_remap(procs, probe):
                scalar_topics=True, publish_clock=True)
     procs.node("belt_drive", *ros_args, case=1, duration=DURATION, wait_for_subscriber="probe",
                flow_window=300, required_consumers=f"['{me}']")
-    procs.node("analysis", *ros_args, case=1)
+    procs.node("analysis", *ros_args, case=1, per_sample_input=True)  # its state subscription too
     done = probe.wait_for(lambda: any(m.data for m in probe.messages[f"{NS}/run_complete"]), 60)
     assert done, procs.logs()
     n = round(DURATION * 1000)

@@ -34,6 +34,7 @@ from ..app.contract import (
     DEFAULT_NAMESPACE,
     EXIT_REAL_TIME_NOT_HELD,
     RECORDER_PARTICIPANT,
+    parameter,
     recorded_topics,
     validate_namespace,
 )
@@ -312,6 +313,12 @@ def run(args: argparse.Namespace) -> int:
         "belt_drive": dict(selection, mode=mode),
         "analysis": dict(selection),
     }
+    for option, name in (("max_lag", "max_lag"), ("lag_policy", "lag_policy")):
+        value = getattr(args, option, None)
+        if value is not None:
+            if mode == "sim":
+                raise CommandError(f"--{option.replace('_', '-')} applies to --mode realtime only")
+            per_node["plant"][name] = value
     clock = mode == "sim" and not getattr(args, "no_clock", False)
     if clock:
         per_node["plant"]["publish_clock"] = True
@@ -431,8 +438,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"report: {page}")
     if late:  # the run is recorded and reported; its timing is what failed
         print(f"lubrig rig: error: {_real_time_verdict(logs / 'plant.log')}", file=sys.stderr)
-        return EXIT_REAL_TIME_NOT_HELD
-    return 130 if math.isnan(wall) else 0  # 128 + SIGINT: interrupted, as a shell reports it
+    if math.isnan(wall):
+        return 130  # 128 + SIGINT: interrupted, as a shell reports it
+    return EXIT_REAL_TIME_NOT_HELD if late else 0
 
 
 def _real_time_verdict(log: Path) -> str:
@@ -467,6 +475,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     group.add_argument("--case", type=int, metavar="N", help="study case 1..10")
     group.add_argument("--config", metavar="FILE", help="run configuration YAML")
     parser.add_argument("--mode", choices=("sim", "realtime"), default="sim")
+    lag = parameter("plant", "max_lag")
+    parser.add_argument(
+        "--max-lag", type=_positive, metavar="S",
+        help=f"realtime: {lag.description} (default {lag.default:g} s; valid {lag.expected()})",
+    )
+    policy = parameter("plant", "lag_policy")
+    parser.add_argument(
+        "--lag-policy", choices=policy.choices,
+        help=f"realtime: what the plant does beyond --max-lag (default {policy.default}); either way "
+        f"lubrig rig ends with status {EXIT_REAL_TIME_NOT_HELD} naming the cause",
+    )
     parser.add_argument(
         "--namespace", default=DEFAULT_NAMESPACE, metavar="NS",
         help=f"ROS namespace of the rig's nodes, topics and services (default {DEFAULT_NAMESPACE})",

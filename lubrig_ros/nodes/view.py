@@ -10,7 +10,9 @@ files), so Foxglove decodes them itself and a new message type needs no code her
 Decimation for display (app/display.py): at most `rate` messages per second of rig time per topic
 (header stamp; receive time for unstamped types), at most twice that per wall second. Blocks
 (``state_block``) are shown sample by sample as ``<ns>/state`` (RigState) on the same rule, so one
-layout serves sim and realtime rigs. Log times are rig time (header stamps; the newest rig time
+layout serves sim and realtime rigs; where a plant publishes both (the wall-clock modes), the
+per-sample ``state`` topic is not subscribed (the blocks carry every sample, 50 messages a second
+instead of 1,000). Log times are rig time (header stamps; the newest rig time
 seen for unstamped messages), and the server broadcasts that time, so Foxglove's clock follows the
 rig (also for `lubrig replay`, whose messages carry their recorded stamps).
 
@@ -192,9 +194,20 @@ class View:
 
     def discover(self) -> None:
         """Subscribe to every topic of the namespace not served yet (called periodically)."""
-        for topic, types in self.node.get_topic_names_and_types():
+        graph = self.node.get_topic_names_and_types()
+        names = {topic for topic, _types in graph}
+        # a plant that publishes both shows its samples once: from the blocks (fewer messages)
+        from_blocks = {
+            topic[: len(topic) - len(block)] + sample
+            for topic in names
+            for block, (sample, _type) in display.EXPANDED_BLOCKS.items()
+            if topic.endswith("/" + block)
+        }
+        for topic, types in graph:
             if topic in self.served or topic in self.ignored or not self.in_scope(topic):
                 continue
+            if topic in from_blocks:
+                continue  # shown from its block topic
             if len(types) != 1:
                 self._ignore(topic, f"published with {len(types)} types {types}")
                 continue
