@@ -88,7 +88,11 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
         b.first_sample_index == a.first_sample_index + len(a.band_velocity) for a, b in itertools.pairwise(sent)
     ), firsts[:10]
     assert {v for m in sent for v in m.band_velocity} == {1e-7} and {m.segment for m in sent} == {0}
-    assert sent[-1].first_sample_index + len(sent[-1].band_velocity) <= index[-1] + 1000
+    # (the plant's position from its blocks, taken after `sent`: the same probe, the same rate)
+    newest = probe.messages[f"{NS}/state_block"][-1]
+    assert sent[-1].first_sample_index + len(sent[-1].band_velocity) <= (
+        newest.first_sample_index + len(newest.displacement) + 200 + 1
+    )
     # state_block: the same samples as state, in blocks of output_block_length (20), each sample
     # with its lateness (>= 0, finite), the initial state alone in the first block
     got = list(probe.messages[blocks])

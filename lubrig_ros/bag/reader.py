@@ -8,7 +8,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from rosbags.interfaces import Connection, MessageDefinitionFormat
 from rosbags.rosbag2 import Reader
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags.typesys.store import Typestore
 
 from lubrig_ros.app.cdr import float64_value
 from lubrig_ros.bag.errors import BagError
@@ -132,12 +135,50 @@ def read_messages(
     bag: str | Path, topics: Iterable[str] | None = None
 ) -> Iterator[tuple[str, str, int, bytes]]:
     """Yield (topic, msgtype, log_time_ns, cdr_bytes) in log-time order (via rosbags)."""
+    for conn, t, data in _connection_messages(bag, topics):
+        yield conn.topic, conn.msgtype, t, data
+
+
+def _connection_messages(
+    bag: str | Path, topics: Iterable[str] | None = None
+) -> Iterator[tuple[Connection, int, bytes]]:
+    """(connection, log_time_ns, cdr_bytes) in log-time order: read_messages with the connection."""
     bag_dir = find_mcap(bag).parent
     wanted = set(topics) if topics is not None else None
     with Reader(bag_dir) as reader:
         conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
         for conn, t, data in reader.messages(connections=conns):
-            yield conn.topic, conn.msgtype, t, bytes(data)
+            yield conn, t, bytes(data)
+
+
+_BAG_STORES: dict[tuple[str, str], Typestore] = {}
+
+
+def connection_typestore(conn: Connection) -> Typestore:
+    """The type store that decodes the messages of one connection.
+
+    The project's (layout.typestore) when the bag defines the connection's type as the project
+    does; otherwise one built from the definition stored in the bag, so a bag recorded before a
+    field was appended to a message (RigStateBlock's lateness and skipped) still decodes, with
+    that field absent from its messages.
+    """
+    store = typestore()
+    definition = conn.msgdef
+    if definition.format != MessageDefinitionFormat.MSG or not definition.data:
+        return store
+    key = (conn.msgtype, definition.data)
+    if key not in _BAG_STORES:
+        try:
+            types = get_types_from_msg(definition.data, conn.msgtype)
+        except Exception:  # an unparsable stored definition: decode with the project's types
+            types = {}
+        if conn.msgtype not in types or types[conn.msgtype] == store.fielddefs.get(conn.msgtype):
+            _BAG_STORES[key] = store
+        else:
+            own = get_typestore(Stores.EMPTY)  # the stored definition holds its dependencies
+            own.register(types)
+            _BAG_STORES[key] = own
+    return _BAG_STORES[key]
 
 
 @dataclass
@@ -180,13 +221,34 @@ def _block_samples(msgtype: str, msg: object) -> dict[str, np.ndarray]:
     cols["stamp"] = _stamp_s(msg.header.stamp) + np.arange(n) * float(msg.sample_period)  # type: ignore[attr-defined]
     cols["sample_index"] = np.arange(first, first + n, dtype=np.int64)
     cols["segment"] = np.full(n, int(msg.segment), dtype=np.int64)  # type: ignore[attr-defined]
+    if msgtype == RIG_STATE_BLOCK:
+        cols["lateness"], cols["skipped"] = _block_timing(msg, n)
     return cols
 
 
-def _decode(msgtype: str, data: bytes) -> dict[str, object]:
+def _block_timing(msg: object, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(lateness, skipped) of a RigStateBlock's n samples.
+
+    lateness (s): the block's own, NaN for each sample when it carries none (sim and lockstep
+    blocks, and bags recorded before the field existed). skipped: the block's count of samples
+    the plant skipped just before it, on its first sample, 0 on the others (so the sum over a
+    stream is every declared skip and the first sample marks where its gap ends).
+    """
+    lateness = np.asarray(getattr(msg, "lateness", ()), dtype=float)
+    if lateness.size == 0:
+        lateness = np.full(n, np.nan)
+    elif lateness.size != n:
+        raise BagError(f"{RIG_STATE_BLOCK}: field lateness has {lateness.size} samples, expected {n}")
+    skipped = np.zeros(n, dtype=np.int64)
+    if n:
+        skipped[0] = int(getattr(msg, "skipped", 0))
+    return lateness, skipped
+
+
+def _decode(msgtype: str, data: bytes, store: Typestore) -> dict[str, object]:
     if msgtype == "std_msgs/msg/Float64" and len(data) >= 12 and data[1] == 1:
         return {"data": float64_value(data)}  # fast path; other encodings: rosbags below
-    msg: Any = typestore().deserialize_cdr(data, msgtype)
+    msg: Any = store.deserialize_cdr(data, msgtype)
     if msgtype == RIG_STATE:
         out: dict[str, object] = {"stamp": _stamp_s(msg.header.stamp), "sample_index": int(msg.sample_index),
                                   "segment": int(msg.segment)}
@@ -213,7 +275,9 @@ def read_arrays(bag: str | Path, topics: Iterable[str] | None = None) -> dict[st
     Float64/UInt8/Bool topics give field ``data``; RigState gives ``stamp`` (s), ``sample_index``,
     ``segment`` and its fields (RIG_STATE_FIELDS); a RigStateBlock / BandVelocityBlock topic is
     flattened into one entry per SAMPLE (``t`` = the message's log time + i · sample_period, the
-    same fields as RigState / ``band_velocity``, ``stamp`` per sample); legacy JointState gives
+    same fields as RigState / ``band_velocity``, ``stamp`` per sample; a RigStateBlock adds
+    ``lateness`` (s, NaN without realtime timing) and ``skipped`` (the block's declared skip on
+    its first sample, see _block_timing)); legacy JointState gives
     ``stamp``, ``position``, ``velocity``, ``effort`` (first joint); Clock gives ``clock`` (s);
     other types give ``message`` (an object array of rosbags messages).
     """
@@ -221,15 +285,17 @@ def read_arrays(bag: str | Path, topics: Iterable[str] | None = None) -> dict[st
     values: dict[str, dict[str, list[object]]] = {}
     types: dict[str, str] = {}
     blocks: dict[str, list[tuple[int, dict[str, np.ndarray]]]] = {}
-    for topic, msgtype, t, data in read_messages(bag, topics):
+    for conn, t, data in _connection_messages(bag, topics):
+        topic, msgtype = conn.topic, conn.msgtype
         types[topic] = msgtype
+        store = connection_typestore(conn)
         if msgtype in BLOCK_FIELDS:
-            samples = _block_samples(msgtype, typestore().deserialize_cdr(data, msgtype))
+            samples = _block_samples(msgtype, store.deserialize_cdr(data, msgtype))
             blocks.setdefault(topic, []).append((t, samples))
             continue
         times.setdefault(topic, []).append(t)
         cols = values.setdefault(topic, {})
-        for key, val in _decode(msgtype, data).items():
+        for key, val in _decode(msgtype, data, store).items():
             cols.setdefault(key, []).append(val)
     out: dict[str, TopicArrays] = {}
     for topic, ts in times.items():

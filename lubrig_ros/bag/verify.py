@@ -264,6 +264,10 @@ class _State:
     end: int = 0
     zero_crc: int = 0
     keep_samples: bool = True  # payloads kept for the continuity check
+    #: channel id -> its schema has RigStateBlock.skipped (read at scan time: it follows the arrays)
+    declares: dict[int, bool] = field(default_factory=dict)
+    #: (channel id, position in samples[cid]) -> RigStateBlock.skipped when not 0
+    skipped: dict[tuple[int, int], int] = field(default_factory=dict)
 
 
 def _schema(b: _Body) -> tuple[int, tuple[str, str, bytes]]:
@@ -489,8 +493,14 @@ def _chunk(v: Verification, buf: mmap.mmap, off: int, b0: int, b1: int, st: _Sta
                 chunk.messages.setdefault(cid, set()).add((t, roff))
                 st.counts[cid] = st.counts.get(cid, 0) + 1
                 if st.keep_samples:
-                    # the leading fields are enough (header, indices, the first array's length)
-                    st.samples.setdefault(cid, []).append((off, t, raw[r0 + 22 : min(r1, r0 + 22 + 512)]))
+                    # the leading fields are enough (header, indices, the first array's length);
+                    # a block's declared skip comes after its arrays: read now
+                    kept = st.samples.setdefault(cid, [])
+                    kept.append((off, t, raw[r0 + 22 : min(r1, r0 + 22 + 512)]))
+                    if _declares(st, cid):
+                        skipped = _skipped_of(raw[r0 + 22 : r1])
+                        if skipped:
+                            st.skipped[(cid, len(kept) - 1)] = skipped
                 times.append(t)
             else:
                 v.add(f"record opcode 0x{op:02x} is not allowed inside a chunk", off)
@@ -712,19 +722,34 @@ def _align(pos: int, a: int) -> int:
     return 4 + -(-(pos - 4) // a) * a
 
 
-def _indexed(kind: str, data: bytes, declares: bool = False) -> tuple[int, int, int, int, float, int]:
-    """(segment, first index, n, stamp ns, period s, declared skipped) of a RigState or block payload.
+def _declares(st: _State, cid: int) -> bool:
+    """The channel's schema is a RigStateBlock with the `skipped` field (cached per channel)."""
+    if cid not in st.declares:
+        ch = st.channels.get(cid)
+        schema = st.schemas.get(ch[0], ("?", "", b"")) if ch is not None else ("?", "", b"")
+        st.declares[cid] = schema[0] == "lubrig_interfaces/msg/RigStateBlock" and b"skipped" in schema[2]
+    return st.declares[cid]
 
-    `declares`: the payload's schema has RigStateBlock.skipped (app.cdr.block_skipped reads it).
-    """
+
+def _skipped_of(data: bytes) -> int:
+    """RigStateBlock.skipped of a whole payload (0 when unreadable)."""
+    try:
+        _e, _stamp, pos = _cdr_header(data)
+    except (_BadError, struct.error):
+        return 0
+    return block_skipped(data, _align(pos, 8) + 20)
+
+
+def _indexed(kind: str, data: bytes) -> tuple[int, int, int, int, float]:
+    """(segment, first index, n, stamp ns, period s) of a RigState or block payload."""
     e, stamp, pos = _cdr_header(data)
     pos = _align(pos, 8)
     if kind == "sample":
         index, segment = struct.unpack_from(e + "QI", data, pos)
-        return segment, index, 1, stamp, 0.0, 0
+        return segment, index, 1, stamp, 0.0
     period, first, segment = struct.unpack_from(e + "dQI", data, pos)
     (n,) = struct.unpack_from(e + "I", data, _align(pos + 20, 4))
-    return segment, first, n, stamp, period, block_skipped(data, pos + 20) if declares else 0
+    return segment, first, n, stamp, period
 
 
 def _per_sample(topic: str) -> bool:
@@ -748,8 +773,8 @@ def _continuity(v: Verification, st: _State, meta: dict[str, object] | None) -> 
         rep = StreamReport(topic, msgtype, len(items))
         v.streams[topic] = rep
         if msgtype in INDEXED_TYPES:
-            declares = b"skipped" in st.schemas.get(sid, ("?", "", b""))[2]
-            _by_index(v, rep, INDEXED_TYPES[msgtype], items, declares)
+            skips = {i: n for (c, i), n in st.skipped.items() if c == cid}
+            _by_index(v, rep, INDEXED_TYPES[msgtype], items, skips)
         elif msgtype in SPACED_TYPES and _per_sample(topic):
             _by_spacing(v, rep, items, period)
         else:
@@ -775,13 +800,16 @@ def _note(v: Verification, rep: StreamReport, what: str, off: int, t_s: float, t
 
 
 def _by_index(v: Verification, rep: StreamReport, kind: str, items: list[tuple[int, int, bytes]],
-              declares: bool = False) -> None:
+              skips: dict[int, int] | None = None) -> None:
+    """Continuity from the indices; `skips`: position in items -> samples the plant declared skipped."""
     rep.method = "by " + ("sample_index" if kind == "sample" else "first_sample_index")
     segment: int | None = None
     expected, last_stamp = 0, -1
-    for off, _t, data in items:
+    skips = skips or {}
+    for position, (off, _t, data) in enumerate(items):
+        skipped = skips.get(position, 0)
         try:
-            seg, first, n, stamp, _period, skipped = _indexed(kind, data, declares)
+            seg, first, n, stamp, _period = _indexed(kind, data)
         except (_BadError, struct.error):
             v.add("message does not decode (sample index unreadable)", off, rep.topic, CONTINUITY)
             continue

@@ -35,6 +35,10 @@ COLOURS = {
     "friction_coefficient": "#7b3294",
     "curve": "black",
     "transient": "0.65",
+    "lateness": "#31688e",  # realtime lateness of a sample (the lag of rig time behind wall time)
+    "deadline": "0.25",  # one sample period after a sample's due time
+    "max_lag": "#b2182b",  # the plant's bound on the lag before it skips samples
+    "skipped": "#e08214",  # samples the plant declared skipped (a declared gap)
 }
 BAND_STYLE: dict[str, Any] = {"color": "black", "ls": "--", "lw": 1.1, "zorder": 5}
 
@@ -118,8 +122,9 @@ def text_boxes(fig: Figure) -> list[tuple[Any, Any]]:
     canvas.draw()
     renderer = canvas.get_renderer()
     texts = [t for ax in fig.axes for t in _axes_texts(ax)] + list(fig.texts)
-    if fig._suptitle is not None:  # type: ignore[attr-defined]
-        texts.append(fig._suptitle)  # type: ignore[attr-defined]
+    suptitle = fig._suptitle  # type: ignore[attr-defined]
+    if suptitle is not None and not any(t is suptitle for t in texts):  # fig.texts may hold it
+        texts.append(suptitle)
     boxes = []
     for text in texts:
         if text.get_visible() and str(text.get_text()).strip():

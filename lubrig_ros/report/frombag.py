@@ -7,10 +7,19 @@ Two layouts are read (docs/recording.md "Bag layouts"):
   x, ẋ, μ, v_band, v_rel with its sample_index and segment, so gaps are found from the bag alone;
 - legacy (before issue 12): sensor_msgs/JointState on ``<ns>/state`` plus the Float64 topics
   ``<ns>/friction_coefficient`` and ``<ns>/band_velocity``.
+
+Time is rig time from 0 at the start of every segment: a sim plant stamps its samples with rig
+time; a realtime plant with the wall clock (its due times, about 1.8e9 s), whose rig time is
+due time − segment start = sample_index · sample_period (`rig_times`).
+
+`read_run` reads a bag once (one integrity check, one decoding pass) and gives everything the
+report needs: configuration, trajectory, the sample accounting and, for a realtime recording,
+its timing (app/lateness.py); `trajectory_from_bag` and `recording_summary` are its parts.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -19,13 +28,18 @@ import yaml
 
 from ..app.accounting import StreamAccount
 from ..app.contract import DEFAULT_NAMESPACE, resolve, validate_namespace
-from ..bag import BagError, TopicArrays, bag_info, read_arrays
+from ..app.lateness import RigTiming, rig_timing
+from ..bag import BagError, BagSummary, TopicArrays, bag_info, read_arrays
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
 from ..core.trajectory import Trajectory
 
 #: Contract names (relative to the rig namespace, /lubrig by default) of the topics read.
 STATE, STATE_BLOCK, FRICTION, BAND = "state", "state_block", "friction_coefficient", "band_velocity"
+#: The diagnostics topic (absolute): the plant's timing status may state its max_lag.
+DIAGNOSTICS = "/diagnostics"
+#: Key of the plant's timing status (`<ns>/plant: timing`) that states its max_lag, s.
+MAX_LAG_KEY = "lag_bound_s"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 RIG_STATE = "lubrig_interfaces/msg/RigState"
 RIG_STATE_BLOCK = "lubrig_interfaces/msg/RigStateBlock"
@@ -37,12 +51,20 @@ class ReportError(ValueError):
     """The bag cannot be turned into a report; the message is one user-facing line."""
 
 
-def config_from_bag(bag: str | Path) -> RunConfig:
-    """The RunConfig stored with the bag (full integrity check first)."""
+def _info(bag: str | Path) -> BagSummary:
+    """The bag's summary after its full integrity check; ReportError naming the problem."""
     try:
-        info = bag_info(bag)
+        return bag_info(bag)
     except BagError as exc:
         raise ReportError(str(exc)) from None
+
+
+def config_from_bag(bag: str | Path) -> RunConfig:
+    """The RunConfig stored with the bag (full integrity check first)."""
+    return _config(bag, _info(bag))
+
+
+def _config(bag: str | Path, info: BagSummary) -> RunConfig:
     text = info.run_config
     if not text:
         raise ReportError(f"bag {str(bag)!r} holds no run configuration (recorded without --config?)")
@@ -59,12 +81,12 @@ def bag_namespace(bag: str | Path) -> str:
     legacy JointState). A bag without one gives the default /lubrig (the caller then finds no
     states); one with the states of several namespaces (two rigs) is refused, naming them.
     """
-    try:
-        topics = bag_info(bag).topics
-    except BagError as exc:
-        raise ReportError(str(exc)) from None
+    return _namespace(bag, _info(bag))
+
+
+def _namespace(bag: str | Path, info: BagSummary) -> str:
     found: dict[str, list[str]] = {}
-    for t in topics:
+    for t in info.topics:
         for name, msgtype in STATE_TOPICS:
             suffix = "/" + name
             if t.count and t.msgtype == msgtype and t.name.endswith(suffix) and len(t.name) > len(suffix):
@@ -81,13 +103,17 @@ def bag_namespace(bag: str | Path) -> str:
 
 
 def _state_arrays(bag: str | Path, namespace: str) -> tuple[str, TopicArrays, dict[str, TopicArrays]]:
-    """(state topic, its arrays, all arrays read) for the first state topic of STATE_TOPICS found."""
+    """(state topic, its arrays, all arrays read) for the first state topic of STATE_TOPICS found.
+
+    One decoding pass over the bag: the state topics, the legacy layout's Float64 topics and
+    the diagnostics (for the plant's stated max_lag).
+    """
     try:
         names = {name: resolve(namespace, name) for name in (STATE, STATE_BLOCK, FRICTION, BAND)}
     except ValueError as exc:
         raise ReportError(str(exc)) from None
     try:
-        arrays = read_arrays(bag, list(names.values()))
+        arrays = read_arrays(bag, [*names.values(), DIAGNOSTICS])
     except BagError as exc:
         raise ReportError(str(exc)) from None
     for name, msgtype in STATE_TOPICS:
@@ -103,17 +129,41 @@ def stream_accounts(bag: str | Path, namespace: str | None = None) -> dict[str, 
     The state stream (state_block or RigState state) in log-time order; legacy bags (no sample
     index) give {}.
     """
-    namespace = bag_namespace(bag) if namespace is None else namespace
+    info = _info(bag)
+    namespace = _namespace(bag, info) if namespace is None else namespace
+    try:
+        rate: float | None = _config(bag, info).sample_rate
+    except ReportError:  # no usable configuration: rig_times takes the period from the stamps
+        rate = None
     topic, state, _arrays = _state_arrays(bag, namespace)
+    return _accounts(topic, state, rate)
+
+
+def _accounts(topic: str, state: TopicArrays, rate: float | None) -> dict[str, StreamAccount]:
+    """The account of a state stream; {} for legacy.
+
+    A gap's time is rig time (rig_times); samples a block declares skipped (RigStateBlock.skipped)
+    are the account's declared gaps, not gaps, as in the recorder's own accounting.
+    """
     if state.msgtype not in (RIG_STATE, RIG_STATE_BLOCK):
         return {}
     account = StreamAccount(topic)
     segment = np.asarray(state["segment"], np.int64)
     index = np.asarray(state["sample_index"], np.int64)
-    stamp_ns = np.rint(np.asarray(state["stamp"], float) * 1e9).astype(np.int64)
-    for seg, k, t in zip(segment.tolist(), index.tolist(), stamp_ns.tolist(), strict=True):
-        account.add(seg, k, 1, t)
+    time_ns = np.rint(rig_times(state, rate) * 1e9).astype(np.int64)
+    skipped = np.asarray(state["skipped"], np.int64) if "skipped" in state.fields else np.zeros_like(index)
+    period_ns = 1e9 / rate if rate else None  # places a declared gap's first skipped sample
+    rows = zip(segment.tolist(), index.tolist(), time_ns.tolist(), skipped.tolist(), strict=True)
+    for seg, k, t, skip in rows:
+        account.add(seg, k, 1, t, period_ns, skipped=skip)
     return {topic: account}
+
+
+def _recording(accounts: dict[str, StreamAccount]) -> dict[str, Any]:
+    return {
+        "streams": {name: a.summary() for name, a in accounts.items()},
+        "problems": [line for a in accounts.values() for line in a.problems()],
+    }
 
 
 def recording_summary(bag: str | Path, namespace: str | None = None) -> dict[str, Any]:
@@ -122,11 +172,7 @@ def recording_summary(bag: str | Path, namespace: str | None = None) -> dict[str
     Empty for a legacy bag (its samples carry no index). "problems" lists one line per gap,
     duplicate or out-of-order kind (StreamAccount.problems).
     """
-    accounts = stream_accounts(bag, namespace)
-    return {
-        "streams": {name: a.summary() for name, a in accounts.items()},
-        "problems": [line for a in accounts.values() for line in a.problems()],
-    }
+    return _recording(stream_accounts(bag, namespace))
 
 
 def trajectory_from_bag(
@@ -136,9 +182,10 @@ def trajectory_from_bag(
 
     The topics are read under `namespace` (default: taken from the bag, see bag_namespace).
 
-    Current layout: the samples of <ns>/state_block (sim) or <ns>/state (RigState), ordered by
-    (segment, sample_index), each sample once; time is the sample's header stamp (rig time),
-    x, ẋ, μ, v_band and v_rel are the recorded fields. `segment`: the run segment to read
+    Current layout: the samples of <ns>/state_block or <ns>/state (RigState), ordered by
+    (segment, sample_index), each sample once; time is rig time (rig_times: the header stamp
+    in sim, due time − segment start in realtime), x, ẋ, μ, v_band and v_rel are the recorded
+    fields. `segment`: the run segment to read
     (default: the first one in the bag; a plant reset starts a new segment at rig time 0). A gap
     leaves its samples out (recording_summary names it).
 
@@ -150,15 +197,126 @@ def trajectory_from_bag(
 
     Stamps within 1e-3 samples of the k / sample_rate grid are put back on it exactly.
     """
-    config = config_from_bag(bag)
-    if namespace is None:
-        namespace = bag_namespace(bag)
+    run = _read(bag, namespace)
+    return run.config, _trajectory(run, segment)[0]
+
+
+@dataclass(frozen=True)
+class RecordedRun:
+    """What the report takes from a bag (read_run)."""
+
+    config: RunConfig
+    trajectory: Trajectory
+    #: {"streams": {topic: StreamAccount.summary()}, "problems": [...]} ({} streams: legacy bag)
+    recording: dict[str, Any]
+    #: the realtime timing of the trajectory's segment; None without recorded lateness (sim,
+    #: per-sample RigState, bags recorded before RigStateBlock carried it)
+    timing: RigTiming | None
+
+
+@dataclass(frozen=True)
+class _Bag:
+    bag: str | Path
+    config: RunConfig
+    namespace: str
+    state_topic: str
+    state: TopicArrays
+    arrays: dict[str, TopicArrays]
+
+
+def _read(bag: str | Path, namespace: str | None) -> _Bag:
+    """One integrity check and one decoding pass: configuration, namespace, state arrays."""
+    info = _info(bag)
+    config = _config(bag, info)
+    namespace = _namespace(bag, info) if namespace is None else namespace
     state_topic, state, arrays = _state_arrays(bag, namespace)
     if state.t.size < 2:
         raise ReportError(f"bag {str(bag)!r} has fewer than 2 {state_topic} messages: nothing to report")
-    if state.msgtype in (RIG_STATE, RIG_STATE_BLOCK):
-        return config, _current_layout(config, state, segment, bag)
-    return config, _legacy_layout(config, state, arrays, namespace)
+    return _Bag(bag, config, namespace, state_topic, state, arrays)
+
+
+def read_run(bag: str | Path, namespace: str | None = None, segment: int | None = None) -> RecordedRun:
+    """Everything the report takes from a bag, from one read of it (one check, one pass).
+
+    The trajectory as trajectory_from_bag gives it, the recording as recording_summary does, and
+    the timing of the trajectory's segment when its samples carry a realtime lateness (the
+    plant's max_lag from its timing status in the bag, else app.lateness.DEFAULT_MAX_LAG).
+    """
+    run = _read(bag, namespace)
+    trajectory, order = _trajectory(run, segment)
+    accounts = _accounts(run.state_topic, run.state, run.config.sample_rate)
+    timing = None
+    if order is not None and "lateness" in run.state.fields:
+        state = run.state
+        timing = rig_timing(
+            int(np.asarray(state["segment"])[order[0]]), 1.0 / run.config.sample_rate,
+            np.asarray(state["sample_index"])[order], np.asarray(state["lateness"])[order],
+            np.asarray(state["skipped"])[order], stated_max_lag(run.arrays, run.namespace),
+        )
+    return RecordedRun(run.config, trajectory, _recording(accounts), timing)
+
+
+def _trajectory(run: _Bag, segment: int | None) -> tuple[Trajectory, np.ndarray | None]:
+    """The trajectory and, in the current layout, the state samples it holds (indices, in order)."""
+    if run.state.msgtype in (RIG_STATE, RIG_STATE_BLOCK):
+        return _current_layout(run.config, run.state, segment, run.bag)
+    return _legacy_layout(run.config, run.state, run.arrays, run.namespace), None
+
+
+def rig_times(state: TopicArrays, rate: float | None) -> np.ndarray:
+    """Rig time (s) of every sample of a current-layout state stream, 0 at each segment's start.
+
+    A segment whose stamps are rig time (sim: the plant's own clock, sample k at k / rate, within
+    one sample period) keeps them. A segment stamped with the wall clock (realtime: sample k at
+    its due time, the segment's start + k · sample_period, about 1.8e9 s; per-sample RigState
+    at its publication) gets due time − segment start, i.e. sample_index / rate: the rig time the
+    plant integrated the sample at, whatever its lateness. rate None (a bag without a usable
+    configuration): the segment's median stamp step per index step.
+    """
+    stamp = np.asarray(state["stamp"], float)
+    index = np.asarray(state["sample_index"], np.int64)
+    segments = np.asarray(state["segment"], np.int64)
+    time = stamp.copy()
+    for seg in np.unique(segments).tolist():
+        rows = np.flatnonzero(segments == seg)
+        rows = rows[np.argsort(index[rows], kind="stable")]
+        period = 1.0 / rate if rate else _median_period(stamp[rows], index[rows])
+        if period is None:
+            continue
+        if abs(stamp[rows[0]] - index[rows[0]] * period) > period:  # not rig time from 0
+            time[rows] = index[rows] * period
+    return time
+
+
+def _median_period(stamp: np.ndarray, index: np.ndarray) -> float | None:
+    step = np.diff(index)
+    ok = step > 0
+    if not ok.any():
+        return None
+    period = float(np.median(np.diff(stamp)[ok] / step[ok]))
+    return period if period > 0 else None
+
+
+def stated_max_lag(arrays: dict[str, TopicArrays], namespace: str) -> float | None:
+    """The max_lag (s) the plant's last timing status in the bag states (MAX_LAG_KEY), if any."""
+    diag = arrays.get(DIAGNOSTICS)
+    if diag is None or "message" not in diag.fields:
+        return None
+    name = f"{namespace.rstrip('/')}/plant: timing"
+    stated = None
+    for msg in diag["message"]:
+        for status in getattr(msg, "status", ()):
+            if status.name != name:
+                continue
+            for pair in status.values:
+                if pair.key == MAX_LAG_KEY:
+                    try:
+                        value = float(pair.value)
+                    except ValueError:
+                        continue
+                    if np.isfinite(value) and value > 0:
+                        stated = value
+    return stated
 
 
 def _on_grid(time: np.ndarray, rate: float) -> np.ndarray:
@@ -170,7 +328,7 @@ def _on_grid(time: np.ndarray, rate: float) -> np.ndarray:
 
 def _current_layout(
     config: RunConfig, state: TopicArrays, segment: int | None, bag: str | Path
-) -> Trajectory:
+) -> tuple[Trajectory, np.ndarray]:
     segments = np.asarray(state["segment"], np.int64)
     wanted = int(segments.min()) if segment is None else segment
     chosen = np.flatnonzero(segments == wanted)
@@ -184,9 +342,11 @@ def _current_layout(
     keep = np.concatenate([[True], np.diff(np.asarray(state["sample_index"])[order]) != 0])
     order = order[keep]  # each sample once (a duplicate is the same sample again)
     field = lambda name: np.asarray(state[name], float)[order]  # noqa: E731
-    time = _on_grid(field("stamp"), config.sample_rate)
-    return Trajectory(time, field("displacement"), field("velocity"), field("friction_coefficient"),
-                      field("band_velocity"), field("relative_velocity"))
+    time = _on_grid(rig_times(state, config.sample_rate)[order], config.sample_rate)
+    trajectory = Trajectory(time, field("displacement"), field("velocity"),
+                            field("friction_coefficient"), field("band_velocity"),
+                            field("relative_velocity"))
+    return trajectory, order
 
 
 def _legacy_layout(config: RunConfig, state: TopicArrays, arrays: dict[str, TopicArrays],
