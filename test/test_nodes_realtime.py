@@ -17,7 +17,7 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import Image
-from std_msgs.msg import Float64, Float64MultiArray, UInt8
+from std_msgs.msg import Float64MultiArray, UInt8
 from std_srvs.srv import SetBool, Trigger
 
 from lubrig_interfaces.msg import BandVelocityBlock, RigState, RigStateBlock, StabilityFlags, WaveletFrame
@@ -85,7 +85,8 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     sent = list(probe.messages[band])
     firsts = [m.first_sample_index for m in sent]
     assert firsts[0] == 0 and all(
-        b.first_sample_index == a.first_sample_index + len(a.band_velocity) for a, b in itertools.pairwise(sent)
+        b.first_sample_index == a.first_sample_index + len(a.band_velocity)
+        for a, b in itertools.pairwise(sent)
     ), firsts[:10]
     assert {v for m in sent for v in m.band_velocity} == {1e-7} and {m.segment for m in sent} == {0}
     # (the plant's position from its blocks, taken after `sent`: the same probe, the same rate)

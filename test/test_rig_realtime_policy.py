@@ -47,7 +47,8 @@ def test_realtime_rig_holds_or_says_it_did_not(procs, tmp_path: Path, cpu_hogs, 
         assert "fell behind real time" in plant_log
         check = procs.run_script("lubrig", "bag", "check", str(run / "bag"), timeout=300)
         assert check.returncode == 0, check.stdout + check.stderr  # no loss: the gaps are declared
-        assert f"declared gaps {len(state['declared_gaps'])} ({state['skipped']} samples skipped" in check.stdout
+        declared = f"declared gaps {len(state['declared_gaps'])} ({state['skipped']} samples skipped"
+        assert declared in check.stdout, check.stdout
     else:  # stopped: at once, no declared gap; the plant said why
         assert state["skipped"] == 0, state
         assert "could not hold real time" in plant_log and "lag_policy stop" in plant_log

@@ -428,7 +428,7 @@ WAIT_FOR_SUBSCRIBER = _p(
     "sim: hold the run until a node whose name starts with this (e.g. the recorder, "
     "'lubrig_recorder') subscribes to every output topic; empty = do not wait",
 )
-DEFAULT_REALTIME_PRIORITY = 0
+DEFAULT_REALTIME_PRIORITY = 50
 REALTIME_PRIORITY = _p(
     "realtime_priority", "integer", DEFAULT_REALTIME_PRIORITY,
     "realtime, rig_in_loop: SCHED_FIFO priority 1..99 of the plant's loop thread alone (where "
@@ -575,7 +575,8 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
            "take these; state stays one message per sample)", unit="samples", low=1, high=10_000),
         _p("state_per_sample", "bool", True,
            "realtime, rig_in_loop, lockstep: also publish one state (RigState) per sample, for rig "
-           "software in the loop (about 40 us per sample for the plant)"),
+           "software in the loop; wall-clock modes: only while the topic has a subscriber (about "
+           "80 us per sample for the plant's loop)"),
         WAIT_FOR_SUBSCRIBER,
         REALTIME_PRIORITY,
         _p("diagnostics_period", "double", 1.0, "time between /diagnostics", unit="s", low=0.0,

@@ -253,7 +253,7 @@ def recorder_command(
     if mode == "sim":
         return [*argv, "--use-sim-time", "--workers", str(SIM_RECORDER_WORKERS)]
     # wall clock: state_block holds every sample; the per-sample streams would be written twice
-    return [*argv, "--topics", *recorded_topics(mode)]
+    return [*argv, "--no-flow-progress", "--topics", *recorded_topics(mode)]
 
 
 def _set_aside(bag_dir: Path) -> None:

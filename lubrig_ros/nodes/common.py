@@ -20,7 +20,8 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -285,17 +286,28 @@ def _stopping(wait: float) -> bool:
     return True
 
 
+#: Longest a node's spin_once waits for work (s): how soon it sees its context shut down otherwise.
+SPIN_WAIT_S = 0.5
+
+
 def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
-    """rclpy.init, build the node, spin until SIGINT/SIGTERM, destroy, shut down; exit status."""
+    """rclpy.init, build the node, spin until SIGINT/SIGTERM, destroy, shut down; exit status.
+
+    The executor is rclpy's EventsExecutor (the C++ events queue: about a tenth of
+    SingleThreadedExecutor's cost per message, which rebuilds its wait set in Python at every
+    wake-up), driven by spin_once: its spin() fires no timer in this rclpy and keeps a core busy
+    (../shared/ros2-interfaces-on-pip.md); the context's shutdown wakes spin_once.
+    """
     rclpy.init(args=args)
     node: Node | None = None
-    executor: SingleThreadedExecutor | None = None
+    executor: Any = None
     status = 0
     try:
         node = make_node()
-        executor = SingleThreadedExecutor()
+        executor = EventsExecutor(context=node.context)
         executor.add_node(node)
-        executor.spin()
+        while node.context.ok():
+            executor.spin_once(timeout_sec=SPIN_WAIT_S)
     except (ParameterError, ParameterException) as exc:
         # ParameterException: e.g. `-p duration:=20` (an integer) for a double parameter
         (node.get_logger() if node else rclpy.logging.get_logger("lubrig")).fatal(str(exc))

@@ -15,7 +15,8 @@ their rules live in app/plant_session.py (unit-tested without DDS):
   state not answered within the heartbeat period is published again (the answer to a repeated
   state is dropped by its sample index).
 * realtime / rig_in_loop tick from a deadline loop on a thread of their own: one <ns>/state per
-  sample (state_per_sample; stamped with the node clock when it was computed), and one
+  sample (state_per_sample; stamped with the node clock when it was computed; only while the
+  topic has a subscriber, checked with every block: a publish costs the loop about 80 µs), and one
   <ns>/state_block per output_block_length samples (stamp: the due time of its first sample,
   node clock; each sample's lateness; a declared gap in `skipped`), followed by flow_progress,
   which belt_drive follows to send band samples ahead. Falling behind real time: lag_policy.
@@ -65,6 +66,9 @@ from . import common
 from .interfaces import create_publisher, create_service, create_subscription, report_callers
 
 HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
+#: Wall-clock modes: flow_progress at most this often (with a state_block; belt_drive sends its
+#: lookahead, 200 samples, ahead of it, so 0.1 s of progress leaves 0.1 s of band in hand).
+PROGRESS_PERIOD_S = 0.1
 #: Exit status of a wall-clock plant that did not hold real time (lag_policy skip or stop).
 EXIT_REAL_TIME_NOT_HELD = contract.EXIT_REAL_TIME_NOT_HELD
 
@@ -127,6 +131,10 @@ class Plant(Node):
         self._clock_msg = Clock()
         self._announced = False  # stepped: first flow_progress sent (the awaited subscriber is there)
         self._state_sent = 0.0  # lockstep: monotonic time the newest state was published
+        self._progress_sent = 0.0  # wall-clock modes: monotonic time of the newest flow_progress
+        # wall-clock modes: state (one message per sample, about 80 us each in the loop) only while
+        # something subscribes to it (checked with every block); lockstep: always
+        self._state_wanted = self.mode == "lockstep"
         # wall-clock stamps: the node clock at a session clock() time (both advance at the same rate)
         self._clock_offset_ns = self.get_clock().now().nanoseconds - time.monotonic_ns()
         per_sample = self.pub_state is not None or self.scalar_topics
@@ -297,7 +305,13 @@ class Plant(Node):
         msg.lateness = _doubles(block.lateness)
         msg.skipped = block.skipped
         self.pub_block.publish(msg)
-        self._publish_progress(first + (len(block) - 1) * block.sample_period)
+        if self.wall_clock and self.pub_state is not None:
+            self._state_wanted = self.pub_state.get_subscription_count() > 0
+        now = time.monotonic()
+        due = now - self._progress_sent >= PROGRESS_PERIOD_S
+        if not self.wall_clock or block.first_sample_index == 0 or due:
+            self._progress_sent = now
+            self._publish_progress(first + (len(block) - 1) * block.sample_period)
         if self.pub_clock is not None:
             self._publish_clock(float(block.time[-1]))
 
@@ -308,7 +322,7 @@ class Plant(Node):
             mx.data, mv.data, mmu.data = s.displacement, s.velocity, s.friction_coefficient
             for pub, m in zip(self.pub_scalars, self._scalar_msgs, strict=True):
                 pub.publish(m)
-        if self.pub_state is None:
+        if self.pub_state is None or not self._state_wanted:
             return
         state = self._state_msg
         if self.wall_clock:

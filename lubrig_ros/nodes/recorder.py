@@ -15,7 +15,8 @@ are printed at the end, written to <bag>/accounting.json, and make the exit stat
 Flow control (sim): this process is the node ``<namespace>/lubrig_recorder`` (RECORDER_NODE) and
 publishes lubrig_interfaces/FlowProgress on ``<namespace>/flow_progress``: samples 0 once its
 state_block subscription has matched a publisher, after every state_block it has written the
-samples of that segment taken in order, and the latest value again every 0.2 s (heartbeat).
+samples of that segment taken in order, and the latest value again every 0.2 s (heartbeat);
+not with --no-flow-progress (`lubrig rig` in the wall-clock modes, where nothing paces on it).
 
 Log times: receive time (system clock, ns); with --use-sim-time the rig time: the header stamp
 for stamped types, the /clock value for /clock, and for unstamped types the latest /clock value
@@ -79,6 +80,8 @@ BLOCK_TYPES = ("lubrig_interfaces/msg/RigStateBlock", "lubrig_interfaces/msg/Ban
 #: After a stop request, wait up to this long for samples the plant announced but not yet taken.
 CATCH_UP_S = 5.0
 READER_DEPTH = 10_000  # samples kept by each reader while its worker is busy (reader_qos)
+#: Longest a worker waits for a message before it checks shipping and stop (s); a message wakes it.
+WORKER_WAIT_S = 0.02
 
 
 # ----------------------------------------------------------------------------- worker process
@@ -159,7 +162,7 @@ def _worker(wid: int, specs: list[Topic], first_index: int, out: Any, stop: Any)
     next_check = 0.0
     try:
         while True:
-            executor.spin_once(timeout_sec=0.005)
+            executor.spin_once(timeout_sec=WORKER_WAIT_S)
             t = time.monotonic()
             if batch and (urgent[0] or t >= next_ship):
                 out.put(("data", wid, batch))
@@ -595,6 +598,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--flush-messages", type=int, default=BagWriter.FLUSH_MESSAGES,
                    help=f"... or once it holds this many messages (default {BagWriter.FLUSH_MESSAGES})")
     p.add_argument("--duration", type=float, help="stop after this many seconds")
+    p.add_argument(
+        "--no-flow-progress", dest="flow_progress", action="store_false",
+        help="do not publish the recorder's FlowProgress (a wall-clock rig is not paced on it)",
+    )
     return p
 
 
@@ -650,7 +657,8 @@ def run(args: argparse.Namespace) -> int:
     )
     status = 0
     try:
-        recorder.start_progress()
+        if args.flow_progress:
+            recorder.start_progress()
         started = recorder.start_workers(should_stop=should_stop)
     except BagError:  # nothing recorded yet: one error line, exit 2 (run_script)
         with contextlib.suppress(BagError):
