@@ -10,6 +10,9 @@ does, without a traceback, and puts Python's own handler back once the node modu
 SIGUSR1 writes the Python stack of every thread to stderr (the node log; faulthandler): the
 launcher sends it to a node that has not stopped within its grace period, before SIGTERM, so a
 wedged node leaves the evidence of where it hung.
+
+`-h` / `--help` before any ROS arguments prints the node's usage and parameters (from the
+contract, without importing rclpy) and exits 0 without starting the node.
 """
 
 from __future__ import annotations
@@ -18,7 +21,36 @@ import faulthandler
 import importlib
 import os
 import signal
+import sys
 from types import FrameType
+
+#: What each rig node does, for --help (the recorder, replay and view have argparse of their own).
+NODE_SUMMARIES = {
+    "plant": "the rig: integrates the mass on the band from band velocity input (modes sim, "
+    "lockstep, realtime, rig_in_loop) and publishes its state",
+    "belt_drive": "the band velocity of a profile, sent to the plant in blocks",
+    "analysis": "online wavelet analysis and stability flags of the plant's samples",
+}
+
+
+def node_help(name: str) -> str:
+    """Usage and parameters of rig node `name` (app/contract.py), as `<node> --help` prints them."""
+    from lubrig_ros.app.contract import NODE_PARAMETERS
+
+    lines = [
+        f"usage: {name} [-h] [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] [-r __ns:=/NS] ...]",
+        "",
+        f"{name}: {NODE_SUMMARIES[name]}.",
+        "A ROS 2 node: parameters are ROS parameters (-p, --params-file, e.g. config/nodes.yaml);",
+        "the namespace defaults to /lubrig. Topics, services, modes: docs/nodes.md, docs/topics.md.",
+        "",
+        "parameters:",
+    ]
+    for p in NODE_PARAMETERS[name]:
+        default = "from the run configuration" if p.default is None else repr(p.default)
+        lines.append(f"  {p.name} ({p.type}, default {default}; valid: {p.expected()})")
+        lines.append(f"      {p.description}")
+    return "\n".join(lines)
 
 
 def _die_of_sigint(_signum: int, _frame: FrameType | None) -> None:
@@ -28,6 +60,11 @@ def _die_of_sigint(_signum: int, _frame: FrameType | None) -> None:
 
 
 def _run(name: str) -> int:
+    own = sys.argv[1:]
+    own = own[: own.index("--ros-args")] if "--ros-args" in own else own
+    if name in NODE_SUMMARIES and ("-h" in own or "--help" in own):
+        print(node_help(name))
+        return 0
     signal.signal(signal.SIGINT, _die_of_sigint)
     faulthandler.register(signal.SIGUSR1, all_threads=True)
     module = importlib.import_module(f"lubrig_ros.nodes.{name}")
