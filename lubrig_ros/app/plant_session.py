@@ -638,6 +638,9 @@ class PlantSession:
                 loop, k = self._start_loop()
             k += 1
             late = loop.wait(k)
+            if self.restart_clock or self.paused:  # a reset or pause came while it slept
+                k -= 1
+                continue
             if late > self.settings.max_lag:
                 k = self.fell_behind(k, late, loop.due_index(self.clock()))
                 if self.fault is not None:
