@@ -298,12 +298,20 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
     wake-up), driven by spin_once: its spin() fires no timer in this rclpy and keeps a core busy
     (../shared/ros2-interfaces-on-pip.md); the context's shutdown wakes spin_once.
     """
-    rclpy.init(args=args)
     node: Node | None = None
     executor: Any = None
     status = 0
+    # A SIGINT while the node is being built (compiled kernels load then, through ctypes
+    # callbacks that print and drop a KeyboardInterrupt) waits until it is built: then rclpy's
+    # handler stops it cleanly. Threads started meanwhile keep it blocked (the main thread takes it).
+    stopping = {signal.SIGINT, signal.SIGTERM}
+    signal.pthread_sigmask(signal.SIG_BLOCK, stopping)
     try:
-        node = make_node()
+        rclpy.init(args=args)
+        try:
+            node = make_node()
+        finally:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, stopping)
         executor = EventsExecutor(context=node.context)
         executor.add_node(node)
         while node.context.ok():
