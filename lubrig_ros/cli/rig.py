@@ -197,7 +197,18 @@ def _wait_complete(
                 if stall is not None:
                     stall.append(f"{timing}: {stall_text[0]}")
                 break
-            executor.spin_once(timeout_sec=0.1)
+            try:
+                executor.spin_once(timeout_sec=0.1)
+            except RuntimeError:
+                # a Ctrl-C: rclpy's signal handling shut the context down under a take ("Unable
+                # to convert call argument"), which is the interrupt, not a failure; the
+                # shutdown may still be in flight for a moment
+                end = time.monotonic() + 0.5
+                while context.ok() and time.monotonic() < end:
+                    time.sleep(0.01)
+                if context.ok():
+                    raise
+                raise KeyboardInterrupt from None
     finally:
         executor.shutdown(timeout_sec=1.0)  # before the context: no Executor.__del__ traceback
         node.destroy_node()

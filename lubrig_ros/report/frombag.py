@@ -263,12 +263,17 @@ def _trajectory(run: _Bag, segment: int | None) -> tuple[Trajectory, np.ndarray 
     return _legacy_layout(run.config, run.state, run.arrays, run.namespace), None
 
 
+#: s: a segment whose first sample is stamped beyond this (1973) carries wall-clock (ROS) time.
+WALL_CLOCK_S = 1e8
+
+
 def rig_times(state: TopicArrays, rate: float | None) -> np.ndarray:
     """Rig time (s) of every sample of a current-layout state stream, 0 at each segment's start.
 
-    A segment whose stamps are rig time (sim: the plant's own clock, sample k at k / rate, within
-    one sample period) keeps them. A segment stamped with the wall clock (realtime: sample k at
-    its due time, the segment's start + k · sample_period, about 1.8e9 s; per-sample RigState
+    A segment whose stamps are rig time (sim: the plant's own clock, sample k at k / rate; any
+    stream stamped from its own time origin) keeps them, so gap times agree with the recorder's
+    accounting. A segment stamped with the wall clock (realtime: sample k at its due time, the
+    segment's start + k · sample_period, about 1.8e9 s, beyond WALL_CLOCK_S; per-sample RigState
     at its publication) gets due time − segment start, i.e. sample_index / rate: the rig time the
     plant integrated the sample at, whatever its lateness. rate None (a bag without a usable
     configuration): the segment's median stamp step per index step.
@@ -283,7 +288,7 @@ def rig_times(state: TopicArrays, rate: float | None) -> np.ndarray:
         period = 1.0 / rate if rate else _median_period(stamp[rows], index[rows])
         if period is None:
             continue
-        if abs(stamp[rows[0]] - index[rows[0]] * period) > period:  # not rig time from 0
+        if stamp[rows[0]] - index[rows[0]] * period > WALL_CLOCK_S:  # ROS time, not rig time
             time[rows] = index[rows] * period
     return time
 
