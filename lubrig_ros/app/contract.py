@@ -425,8 +425,9 @@ RUN_SELECTION: tuple[NodeParameter, ...] = (
 )
 WAIT_FOR_SUBSCRIBER = _p(
     "wait_for_subscriber", "string", "",
-    "sim: hold the run until a node whose name starts with this (e.g. the recorder, "
-    "'lubrig_recorder') subscribes to every output topic; empty = do not wait",
+    "hold the run until a node whose name starts with this (e.g. the recorder, 'lubrig_recorder') "
+    "subscribes to every output topic (sim, lockstep) or to state_block (realtime, rig_in_loop: "
+    "the loop starts then); empty = do not wait",
 )
 DEFAULT_REALTIME_PRIORITY = 50
 REALTIME_PRIORITY = _p(

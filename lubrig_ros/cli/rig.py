@@ -264,7 +264,7 @@ def recorder_command(
     if mode == "sim":
         return [*argv, "--use-sim-time", "--workers", str(SIM_RECORDER_WORKERS)]
     # wall clock: state_block holds every sample; the per-sample streams would be written twice
-    return [*argv, "--no-flow-progress", "--topics", *recorded_topics(mode)]
+    return [*argv, "--progress-heartbeat-only", "--topics", *recorded_topics(mode)]
 
 
 def _set_aside(bag_dir: Path) -> None:
@@ -285,6 +285,7 @@ READY_LINES = {
     "belt_drive": "belt_drive: mode=",
     "analysis": "analysis: window",
     "plant": "plant: mode=",
+    "plant_loop": "subscribed; the loop starts",  # a realtime plant waiting for the recorder
 }
 
 
@@ -344,8 +345,8 @@ def run(args: argparse.Namespace) -> int:
     if with_recorder:
         # sim: nothing flows before the recorder has subscribed to every output (no lost sample),
         # and belt_drive paces on the recorder's flow_progress as well as the plant's
+        per_node["plant"]["wait_for_subscriber"] = RECORDER_NODE_PREFIX  # nothing unrecorded
         if mode == "sim":
-            per_node["plant"]["wait_for_subscriber"] = RECORDER_NODE_PREFIX
             per_node["belt_drive"]["wait_for_subscriber"] = RECORDER_NODE_PREFIX
             if recorder_reports_progress():
                 per_node["belt_drive"]["required_consumers"] = f"['{RECORDER_PARTICIPANT}']"
@@ -390,6 +391,8 @@ def run(args: argparse.Namespace) -> int:
             _wait_ready("recorder", procs["recorder"], logs / "recorder.log")
         if mode != "sim":  # the run's wall duration counts from the plant's first sample
             _wait_ready("plant", procs["plant"], logs / "plant.log")
+            if with_recorder:
+                _wait_ready("plant_loop", procs["plant"], logs / "plant.log")
         domain = env.get("ROS_DOMAIN_ID", "0")
         print(
             f"lubrig rig: {config.name} ({mode}, {config.duration:g} s) on ROS_DOMAIN_ID {domain}, "

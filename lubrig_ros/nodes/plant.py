@@ -69,6 +69,8 @@ HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
 #: Wall-clock modes: flow_progress at most this often (with a state_block; belt_drive sends its
 #: lookahead, 200 samples, ahead of it, so 0.1 s of progress leaves 0.1 s of band in hand).
 PROGRESS_PERIOD_S = 0.1
+#: Wall-clock modes with wait_for_subscriber: longest wait for that node's flow_progress (s).
+AWAIT_PROGRESS_S = 5.0
 #: Exit status of a wall-clock plant that did not hold real time (lag_policy skip or stop).
 EXIT_REAL_TIME_NOT_HELD = contract.EXIT_REAL_TIME_NOT_HELD
 
@@ -155,6 +157,9 @@ class Plant(Node):
         # raw (serialized CDR) subscription: about 2x cheaper per message than a Float64 object
         create_subscription(self, "band_velocity", self._on_band_raw, raw=True)
         create_subscription(self, "band_velocity_block", self._on_band_block)
+        self._heard_awaited = False  # wall clock: the awaited subscriber's flow_progress arrived
+        if self.wall_clock and self.wait_for_subscriber:
+            create_subscription(self, "flow_progress", self._on_progress)
         for name, callback in (("plant/reset", self._on_reset), ("plant/pause", self._on_pause)):
             service = create_service(self, name, callback)
             # every reset/pause is logged with its caller; rclpy does not tell the callback
@@ -188,6 +193,11 @@ class Plant(Node):
         # foreign senders: a block without a positive period or of another rate is still taken
         # sample by sample at the plant's own rate (the values are what counts)
         self.session.band_block(msg.band_velocity, int(msg.segment), int(msg.first_sample_index))
+
+    def _on_progress(self, msg: FlowProgress) -> None:
+        name = str(msg.participant).rsplit("/", 1)[-1]
+        if name.startswith(self.wait_for_subscriber):
+            self._heard_awaited = True
 
     def _log(self, level: str, text: str) -> None:
         # one call site per severity: rclpy refuses a call site whose severity changes
@@ -338,10 +348,41 @@ class Plant(Node):
         self.pub_state.publish(state)
         self._state_sent = time.monotonic()
 
+    def _await_subscriber(self) -> bool:
+        """Wall-clock modes with wait_for_subscriber: hold the loop until that node takes state_block.
+
+        Its subscription in the graph and matched by this publisher: samples published before the
+        match (a recorder's first 0.1 s) would be lost. False if the node stops meanwhile.
+        """
+        prefix = self.wait_for_subscriber
+        if not prefix:
+            return True
+        self.get_logger().info(f"realtime: waiting for {prefix}* to subscribe to state_block")
+        topic = [self.pub_block.topic_name]
+        while not (self.pub_block.get_subscription_count() > 0 and common.subscribed_by(self, topic, prefix)):
+            if self._stop.wait(0.05):
+                return False
+        # the reader's side of the match: its node's flow_progress (the recorder reports once its
+        # state_block subscription has matched this publisher); a consumer that reports none
+        # gets AWAIT_PROGRESS_S of discovery
+        end = time.monotonic() + AWAIT_PROGRESS_S
+        while not self._heard_awaited and time.monotonic() < end:
+            if self._stop.wait(0.05):
+                return False
+        if not self._heard_awaited:
+            self.get_logger().warning(
+                f"realtime: no flow_progress from {prefix}* within {AWAIT_PROGRESS_S:g} s of its "
+                "subscription; starting (its first samples may be lost)"
+            )
+        self.get_logger().info(f"realtime: {prefix}* subscribed; the loop starts")
+        return True
+
     def _realtime_loop(self) -> None:
         priority = int(self.get_parameter("realtime_priority").value)
         common.enter_realtime(priority, self)  # this thread only
         try:
+            if not self._await_subscriber():
+                return
             self.session.run_realtime(self._stop.is_set)
         except Exception as exc:
             if not self._stop.is_set() and self.context.ok():

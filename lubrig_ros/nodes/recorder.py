@@ -16,7 +16,8 @@ Flow control (sim): this process is the node ``<namespace>/lubrig_recorder`` (RE
 publishes lubrig_interfaces/FlowProgress on ``<namespace>/flow_progress``: samples 0 once its
 state_block subscription has matched a publisher, after every state_block it has written the
 samples of that segment taken in order, and the latest value again every 0.2 s (heartbeat);
-not with --no-flow-progress (`lubrig rig` in the wall-clock modes, where nothing paces on it).
+with --progress-heartbeat-only (`lubrig rig` in the wall-clock modes, where nothing paces on
+it) only on matching and as the heartbeat.
 
 Log times: receive time (system clock, ns); with --use-sim-time the rig time: the header stamp
 for stamped types, the /clock value for /clock, and for unstamped types the latest /clock value
@@ -265,6 +266,7 @@ class Recorder:
         self.plant_node = resolve(namespace, "plant")  # its FlowProgress announces what it published
         self.participant = resolve(namespace, RECORDER_NODE)
         self.progress: tuple[int, int] | None = None  # (segment, samples) last reported
+        self.progress_per_block = True  # False: on matching and as the 0.2 s heartbeat only
         self.progress_pub: object = None
         self.progress_node: object = None
         self.last_progress = 0.0
@@ -382,7 +384,7 @@ class Recorder:
         topic.account.add(
             span.segment, span.first_index, span.count, span.stamp_ns, span.period_ns, span.skipped
         )
-        if topic.spec.name == self.state_block:
+        if topic.spec.name == self.state_block and self.progress_per_block:
             self.report_progress(span.segment, topic.account.taken(span.segment))
 
     def _announced(self, data: bytes) -> None:
@@ -432,7 +434,12 @@ class Recorder:
 
     def _heartbeat(self) -> None:
         if self.progress is not None and time.monotonic() - self.last_progress >= HEARTBEAT_S:
-            self.report_progress(*self.progress)
+            account = next((t.account for t in self.topics if t.spec.name == self.state_block), None)
+            if account is None or account.newest_segment < 0:
+                self.report_progress(*self.progress)
+            else:  # what is taken now (with progress per block: the same value again)
+                segment = account.newest_segment
+                self.report_progress(segment, account.taken(segment))
 
     def stop_progress(self) -> None:
         """Destroy the progress node (and rclpy's context of this process)."""
@@ -599,8 +606,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"... or once it holds this many messages (default {BagWriter.FLUSH_MESSAGES})")
     p.add_argument("--duration", type=float, help="stop after this many seconds")
     p.add_argument(
-        "--no-flow-progress", dest="flow_progress", action="store_false",
-        help="do not publish the recorder's FlowProgress (a wall-clock rig is not paced on it)",
+        "--progress-heartbeat-only", dest="progress_per_block", action="store_false",
+        help="FlowProgress once the state_block subscription has matched and then every 0.2 s, "
+        "not after every block (a wall-clock rig is not paced on it; its plant starts once it "
+        "has heard the recorder, so no sample is published before the recorder takes them)",
     )
     return p
 
@@ -657,8 +666,8 @@ def run(args: argparse.Namespace) -> int:
     )
     status = 0
     try:
-        if args.flow_progress:
-            recorder.start_progress()
+        recorder.progress_per_block = args.progress_per_block
+        recorder.start_progress()
         started = recorder.start_workers(should_stop=should_stop)
     except BagError:  # nothing recorded yet: one error line, exit 2 (run_script)
         with contextlib.suppress(BagError):
