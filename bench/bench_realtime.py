@@ -782,17 +782,22 @@ def print_summary(results: list[RunResult]) -> None:
         )
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--duration", type=float, default=60.0, help="steady window, s (default 60)")
+def rig_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of the rig a bench runs (shared with bench_soak)."""
     parser.add_argument("--hogs", type=int, default=0, help="CPU hogs beside the rig (default 0)")
-    parser.add_argument("--repeat", type=int, default=1, help="runs (default 1)")
     parser.add_argument("--case", type=int, default=1, help="study case (default 1)")
     parser.add_argument("--namespace", default=contract.DEFAULT_NAMESPACE, help="rig namespace")
     parser.add_argument(
         "--startup-timeout", type=float, default=120.0, help="limit for the rig's start-up, s (default 120)"
     )
     parser.add_argument("--keep", type=Path, help="keep the run folders under this directory")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--duration", type=float, default=60.0, help="steady window, s (default 60)")
+    parser.add_argument("--repeat", type=int, default=1, help="runs (default 1)")
+    rig_arguments(parser)
     args = parser.parse_args()
     if args.duration <= 0 or args.hogs < 0 or args.repeat < 1:
         parser.error("expected --duration > 0, --hogs >= 0, --repeat >= 1")

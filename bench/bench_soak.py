@@ -30,10 +30,8 @@ from pathlib import Path
 
 import numpy as np
 import psutil
-from bench_realtime import ROLES, Rig, cpu_hogs, load_average, stop_on_signals
+from bench_realtime import ROLES, Rig, cpu_hogs, load_average, rig_arguments, stop_on_signals
 from lubrig_testkit.harness import DomainLease, ros_env
-
-from lubrig_ros.app import contract
 
 FIRST_MINUTE_S = 60.0
 FLAT_WITHIN = 0.10
@@ -159,13 +157,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--duration", type=float, default=600.0, help="soak length, s (default 600)")
     parser.add_argument("--every", type=float, default=10.0, help="sampling period, s (default 10)")
-    parser.add_argument("--hogs", type=int, default=0, help="CPU hogs beside the rig (default 0)")
-    parser.add_argument("--case", type=int, default=1, help="study case (default 1)")
-    parser.add_argument("--namespace", default=contract.DEFAULT_NAMESPACE, help="rig namespace")
-    parser.add_argument(
-        "--startup-timeout", type=float, default=120.0, help="limit for the rig's start-up, s (default 120)"
-    )
-    parser.add_argument("--keep", type=Path, help="keep the run folder under this directory")
+    rig_arguments(parser)
     args = parser.parse_args()
     if args.duration <= 0 or args.every <= 0 or args.hogs < 0:
         parser.error("expected --duration > 0, --every > 0, --hogs >= 0")
