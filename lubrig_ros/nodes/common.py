@@ -290,6 +290,18 @@ def _stopping(wait: float) -> bool:
 SPIN_WAIT_S = 0.5
 
 
+def _ignore_sigint() -> None:
+    """SIGINT ignored from now on; a KeyboardInterrupt already on its way is swallowed meanwhile."""
+    for _ in range(10):
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            return
+        except KeyboardInterrupt:
+            continue
+        except ValueError:  # not the main thread: nothing to change
+            return
+
+
 def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     """rclpy.init, build the node, spin until SIGINT/SIGTERM, destroy, shut down; exit status.
 
@@ -321,7 +333,7 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
         (node.get_logger() if node else rclpy.logging.get_logger("lubrig")).fatal(str(exc))
         status = 2
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        _ignore_sigint()  # at once: one SIGINT can raise twice (rclpy's handler and Python's)
     except RuntimeError:
         # After SIGINT/SIGTERM rclpy shuts the context down under a running executor; a take on a
         # subscription whose handle is already gone then raises a RuntimeError ("Unable to convert
@@ -333,8 +345,7 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
     finally:
         # stopping: a second SIGINT (a terminal's Ctrl-C reaches the whole process group, then the
         # launcher sends its own) must not interrupt the clean-up with a KeyboardInterrupt
-        with contextlib.suppress(ValueError):  # not the main thread: nothing to change
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        _ignore_sigint()
         if node is not None:
             close = getattr(node, "close", None)
             if close is not None:

@@ -71,7 +71,10 @@ def _run(name: str) -> int:
     # imported: Python's own handler again, which rclpy's signal handling chains to (a SIGINT to a
     # running node is a KeyboardInterrupt that its main turns into a clean stop, exit status 0)
     signal.signal(signal.SIGINT, signal.default_int_handler)
-    return int(module.main() or 0)
+    try:
+        return int(module.main() or 0)
+    except KeyboardInterrupt:  # a second Ctrl-C that came before the node ignored SIGINT: stopped
+        return 0
 
 
 def belt_drive() -> int:
