@@ -10,7 +10,6 @@ gaps (skip) or the plant's stop (stop) matching what the plant said; never a sil
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import pytest
@@ -24,11 +23,9 @@ DURATION = 6.0
 def test_realtime_rig_holds_or_says_it_did_not(procs, tmp_path: Path, cpu_hogs, policy: str) -> None:
     cpu_hogs(4)
     run = tmp_path / "run"
-    started = time.monotonic()
     rig = procs.script("lubrig", "rig", "--case", "1", "--mode", "realtime", "--duration", str(DURATION),
                        "--run-dir", str(run), "--no-report", "--lag-policy", policy)
-    code = rig.wait(600)
-    wall = time.monotonic() - started
+    code = rig.wait(600)  # a guard against a hang, not a figure
     plant_log = (run / "logs" / "plant.log").read_text()
     accounting = json.loads((run / "bag" / "accounting.json").read_text())
     state = accounting["streams"]["/lubrig/state_block"]
@@ -52,4 +49,3 @@ def test_realtime_rig_holds_or_says_it_did_not(procs, tmp_path: Path, cpu_hogs, 
     else:  # stopped: at once, no declared gap; the plant said why
         assert state["skipped"] == 0, state
         assert "could not hold real time" in plant_log and "lag_policy stop" in plant_log
-        assert wall < DURATION + 120  # ended, not hung (how soon is machine dependent)
