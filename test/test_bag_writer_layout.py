@@ -2,8 +2,9 @@
 
 The same input written both ways gives the same rosbag2 bag apart from the CRCs and the writer's
 name: identical message payloads, log and publish times, schemas (name, encoding ros2msg, text),
-channels (topic, encoding cdr, offered QoS), header profile ros2 and metadata.yaml. Read back
-with the mcap reader (CRCs validated) and rosbags.
+channels (topic, encoding cdr, offered QoS), header profile ros2 and metadata.yaml; plus what
+rosbag2 writes and rosbags does not (issue 20): each channel's `topic_type_hash` and the real
+`ros_distro`. Read back with the mcap reader (CRCs validated) and rosbags.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 
 from lubrig_ros.bag import BagWriter
-from lubrig_ros.bag.layout import RUN_CONFIG_KEY, VERSION_KEY
+from lubrig_ros.bag.layout import RUN_CONFIG_KEY, VERSION_KEY, ros_distro
 from lubrig_ros.bag.verify import verify_bag
 from lubrig_ros.bag.writer import make_qos, serialize_string, typestore
 
@@ -27,22 +28,43 @@ CONFIG = "plant:\n  mass_kg: 1.0\n"
 
 def _inputs() -> list[tuple[str, str, int, bytes]]:
     ts = typestore()
-    js, hdr, stamp = (ts.types[n] for n in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header",
-                                            "builtin_interfaces/msg/Time"))
+    js, hdr, stamp = (
+        ts.types[n]
+        for n in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header", "builtin_interfaces/msg/Time")
+    )
     clock = ts.types["rosgraph_msgs/msg/Clock"]
     rng = np.random.default_rng(15)
     out = [("/lubrig/run_config", "std_msgs/msg/String", 0, serialize_string(CONFIG))]
     for k in range(2500):
         t = 1_000_000_000 + k * 1_000_000
         sec, nsec = divmod(t, 10**9)
-        out.append(("/clock", "rosgraph_msgs/msg/Clock", t,
-                    bytes(ts.serialize_cdr(clock(stamp(sec, nsec)), "rosgraph_msgs/msg/Clock"))))
-        out.append(("/lubrig/displacement", "std_msgs/msg/Float64", t,
-                    b"\x00\x01\x00\x00" + struct.pack("<d", float(rng.normal()))))
-        state = js(hdr(stamp(sec, nsec), ""), ["mass"], rng.normal(size=1), rng.normal(size=1),
-                   rng.normal(size=1))
-        out.append(("/lubrig/state", "sensor_msgs/msg/JointState", t,
-                    bytes(ts.serialize_cdr(state, "sensor_msgs/msg/JointState"))))
+        out.append(
+            (
+                "/clock",
+                "rosgraph_msgs/msg/Clock",
+                t,
+                bytes(ts.serialize_cdr(clock(stamp(sec, nsec)), "rosgraph_msgs/msg/Clock")),
+            )
+        )
+        out.append(
+            (
+                "/lubrig/displacement",
+                "std_msgs/msg/Float64",
+                t,
+                b"\x00\x01\x00\x00" + struct.pack("<d", float(rng.normal())),
+            )
+        )
+        state = js(
+            hdr(stamp(sec, nsec), ""), ["mass"], rng.normal(size=1), rng.normal(size=1), rng.normal(size=1)
+        )
+        out.append(
+            (
+                "/lubrig/state",
+                "sensor_msgs/msg/JointState",
+                t,
+                bytes(ts.serialize_cdr(state, "sensor_msgs/msg/JointState")),
+            )
+        )
     return out
 
 
@@ -57,8 +79,12 @@ def _write_rosbags(path: Path, inputs: list[tuple[str, str, int, bytes]]) -> Non
     for topic, msgtype, t, data in inputs:
         if topic not in conns:
             latched = topic.endswith("run_config")
-            conns[topic] = w.add_connection(topic, msgtype, typestore=typestore(),
-                                            offered_qos_profiles=[make_qos(1 if latched else 1000, latched)])
+            conns[topic] = w.add_connection(
+                topic,
+                msgtype,
+                typestore=typestore(),
+                offered_qos_profiles=[make_qos(1 if latched else 1000, latched)],
+            )
         w.write(conns[topic], t, data)
     w.close()
 
@@ -83,8 +109,15 @@ def _content(bag: Path) -> dict[str, object]:
     return {
         "profile": header.profile,
         "schemas": sorted((s.name, s.encoding, s.data) for s in summary.schemas.values()),
-        "channels": sorted((c.topic, c.message_encoding, summary.schemas[c.schema_id].name,
-                            tuple(sorted(c.metadata.items()))) for c in summary.channels.values()),
+        "channels": sorted(
+            (
+                c.topic,
+                c.message_encoding,
+                summary.schemas[c.schema_id].name,
+                tuple(sorted(c.metadata.items())),
+            )
+            for c in summary.channels.values()
+        ),
         "messages": messages,
         "metadata": yaml.safe_load((bag / "metadata.yaml").read_text().replace(mcap.name, "X.mcap")),
     }
@@ -97,8 +130,25 @@ def test_same_bag_as_the_rosbags_writer_but_with_crcs(tmp_path: Path) -> None:
     old, new = _content(tmp_path / "old"), _content(tmp_path / "new")
     assert len(new["messages"]) == len(inputs)
     assert new["messages"] == old["messages"]  # payloads bit-identical, same times, same order
-    for key in ("profile", "schemas", "channels", "metadata"):
+    for key in ("profile", "schemas"):
         assert new[key] == old[key], key
+    # the channels carry the type hash as rosbag2's MCAP plugin writes it; the rest is unchanged
+    hashes = {topic: dict(meta)["topic_type_hash"] for topic, _e, _s, meta in new["channels"]}
+    unhashed = [
+        (t, e, s, tuple(kv for kv in m if kv[0] != "topic_type_hash")) for t, e, s, m in new["channels"]
+    ]
+    assert unhashed == old["channels"]
+    new_info, old_info = (
+        new["metadata"]["rosbag2_bagfile_information"],
+        old["metadata"]["rosbag2_bagfile_information"],
+    )
+    assert {
+        t["topic_metadata"]["name"]: t["topic_metadata"]["type_description_hash"]
+        for t in new_info["topics_with_message_count"]
+    } == hashes
+    assert all(h.startswith("RIHS01_") for h in hashes.values())
+    assert (old_info.pop("ros_distro"), new_info.pop("ros_distro")) == ("rosbags", ros_distro())
+    assert new["metadata"] == old["metadata"]
     assert writer.chunks_flushed > 1  # the flush bound closed chunks along the way
     # every chunk and the summary carry a CRC-32 (the rosbags bag has none)
     with open(tmp_path / "new" / "new.mcap", "rb") as f:
@@ -129,6 +179,12 @@ def test_flush_bound_rig_time_and_messages(tmp_path: Path) -> None:
         with open(tmp_path / name / f"{name}.mcap", "rb") as f:
             reader = make_reader(f)
             for c in chunks:
-                sizes.append(sum(1 for _ in reader.iter_messages(starting_at=c.message_start_time,
-                                                                 ending_at=c.message_end_time)))
+                sizes.append(
+                    sum(
+                        1
+                        for _ in reader.iter_messages(
+                            starting_at=c.message_start_time, ending_at=c.message_end_time
+                        )
+                    )
+                )
         assert max(sizes) <= most, (name, max(sizes))

@@ -1,7 +1,7 @@
 """The bag's layout shared by writer, reader and repair (keys, sidecar, type store, files).
 
-custom_data keys, the run-config sidecar, the rosbags type store, metadata.yaml and the one
-.mcap file of a bag directory.
+custom_data keys, the run-config sidecar, the ROS 2 distribution (pinned and installed), the
+rosbags type store, metadata.yaml and the one .mcap file of a bag directory.
 
 Nothing here writes a bag; writer, reader and repair import this module and never each other.
 """
@@ -9,7 +9,10 @@ Nothing here writes a bag; writer, reader and repair import this module and neve
 from __future__ import annotations
 
 import os
+import re
 import sys
+from functools import cache
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +30,63 @@ ACCOUNTING_SIDECAR = "accounting.json"  # the recorder's per-stream sample accou
 #: The rig's own interface package (lubrig_interfaces, ament_cmake + rosidl).
 INTERFACE_PACKAGE = "lubrig_interfaces"
 
+#: The ROS 2 distribution requirements.txt pins: its unprefixed ros-* wheels are the Kilted line
+#: (rclpy 9.1). The one place the project names it: the type store below and the fallback of
+#: ros_distro().
+PINNED_ROS_DISTRO = "kilted"
+
+#: rclpy's major version per ROS 2 distribution line (a release keeps its rclpy major).
+RCLPY_MAJOR_DISTRO = {3: "humble", 4: "iron", 7: "jazzy", 9: "kilted"}
+
+_PREFIXED_RCLPY = re.compile(r"ros-([a-z]+)-rclpy")
+
 _TYPESTORE: Typestore | None = None
+
+
+@cache
+def installed_ros_distro() -> str | None:
+    """The ROS 2 distribution of the installed rclpy, from its package metadata (None: unknown).
+
+    A prefixed wheel set (``ros-jazzy-rclpy``, ``ros-kilted-rclpy``) names it; the unprefixed
+    ``ros-rclpy`` wheel (and the ``rclpy`` of a ROS install or colcon build) by its version's
+    major (RCLPY_MAJOR_DISTRO). Read once per process.
+    """
+
+    def line(dist: str) -> str | None:
+        try:
+            major = int(metadata.version(dist).split(".")[0])
+        except (metadata.PackageNotFoundError, ValueError):
+            return None
+        return RCLPY_MAJOR_DISTRO.get(major)
+
+    distro = line("ros-rclpy")
+    if distro:
+        return distro
+    for dist in metadata.distributions():
+        try:
+            name = re.sub(r"[-_.]+", "-", str(dist.metadata["Name"] or "")).lower()
+        except KeyError:  # no Name field
+            continue
+        match = _PREFIXED_RCLPY.fullmatch(name)
+        if match:
+            return match.group(1)
+    return line("rclpy")
+
+
+def ros_distro() -> str:
+    """The ROS 2 distribution this process runs (metadata.yaml's ``ros_distro``).
+
+    ``ROS_DISTRO`` if set (what rosbag2 records; a sourced ROS environment sets it), else the
+    installed rclpy's distribution (installed_ros_distro), else the pinned one (PINNED_ROS_DISTRO).
+    """
+    return os.environ.get("ROS_DISTRO", "").strip() or installed_ros_distro() or PINNED_ROS_DISTRO
+
+
+def install_prefixes() -> list[Path]:
+    """Where installed ROS packages are: this interpreter's prefix, then every AMENT_PREFIX_PATH entry."""
+    prefixes = [Path(sys.prefix)]
+    prefixes += [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    return prefixes
 
 
 def interface_msg_dirs() -> list[Path]:
@@ -37,9 +96,7 @@ def interface_msg_dirs() -> list[Path]:
     of this interpreter's prefix, then of every AMENT_PREFIX_PATH entry, as a colcon workspace
     sets it), then the repository's source directory next to the lubrig_ros package.
     """
-    prefixes = [Path(sys.prefix)]
-    prefixes += [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-    dirs = [prefix / "share" / INTERFACE_PACKAGE / "msg" for prefix in prefixes]
+    dirs = [prefix / "share" / INTERFACE_PACKAGE / "msg" for prefix in install_prefixes()]
     dirs.append(Path(__file__).resolve().parents[2] / INTERFACE_PACKAGE / "msg")
     return dirs
 
@@ -62,15 +119,15 @@ def interface_definitions() -> dict[str, str]:
 
 
 def typestore() -> Typestore:
-    """The rosbags type store: ROS 2 Kilted's types plus lubrig_interfaces' messages.
+    """The rosbags type store: the pinned distribution's types (Kilted) plus lubrig_interfaces'.
 
     lubrig_interfaces' .msg files are registered from their text (interface_definitions), so the
-    writer stores their schemas (ros2msg, with the RIHS01 type hash rosidl computes) in the MCAP
-    and rosbags can (de)serialize them.
+    writer stores their schemas (ros2msg) in the MCAP, meta.type_hash gives the RIHS01 hash rosidl
+    computes for them and rosbags can (de)serialize them.
     """
     global _TYPESTORE
     if _TYPESTORE is None:
-        store = get_typestore(Stores.ROS2_KILTED)
+        store = get_typestore(Stores(f"ros2_{PINNED_ROS_DISTRO}"))
         types: dict = {}
         for name, text in interface_definitions().items():
             types.update(get_types_from_msg(text, name))

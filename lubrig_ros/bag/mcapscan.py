@@ -20,7 +20,7 @@ from backports import zstd
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
-OP_MESSAGE_INDEX, OP_DATA_END = 0x07, 0x0F
+OP_MESSAGE_INDEX, OP_METADATA, OP_DATA_END = 0x07, 0x0C, 0x0F
 _VALID_OPS = set(range(0x01, 0x10))
 
 
@@ -54,6 +54,14 @@ class Message:
     log_time: int
     publish_time: int
     data: bytes
+
+
+@dataclass
+class Metadata:
+    """An MCAP metadata record (the writer's "rosbag2" record: serialized_metadata)."""
+
+    name: str
+    metadata: dict[str, str]
 
 
 @dataclass
@@ -94,7 +102,18 @@ def _string(buf: bytes, pos: int) -> tuple[str, int]:
     return buf[pos + 4 : pos + 4 + n].decode(), pos + 4 + n
 
 
-def _parse(op: int, body: bytes) -> Schema | Channel | Message | None:
+def _string_map(body: bytes, pos: int) -> tuple[dict[str, str], int]:
+    (n,) = struct.unpack_from("<I", body, pos)
+    pos += 4
+    end = pos + n
+    out: dict[str, str] = {}
+    while pos < end:
+        key, pos = _string(body, pos)
+        out[key], pos = _string(body, pos)
+    return out, pos
+
+
+def _parse(op: int, body: bytes) -> Schema | Channel | Message | Metadata | None:
     if op == OP_SCHEMA:
         (sid,) = struct.unpack_from("<H", body, 0)
         name, p = _string(body, 2)
@@ -105,17 +124,17 @@ def _parse(op: int, body: bytes) -> Schema | Channel | Message | None:
         cid, sid = struct.unpack_from("<HH", body, 0)
         topic, p = _string(body, 4)
         enc, p = _string(body, p)
-        (n,) = struct.unpack_from("<I", body, p)
-        p += 4
-        end = p + n
-        meta: dict[str, str] = {}
-        while p < end:
-            key, p = _string(body, p)
-            meta[key], p = _string(body, p)
+        meta, p = _string_map(body, p)
         return Channel(cid, sid, topic, enc, meta)
     if op == OP_MESSAGE:
         cid, seq, log_time, pub_time = struct.unpack_from("<HIQQ", body, 0)
         return Message(cid, seq, log_time, pub_time, body[22:])
+    if op == OP_METADATA:  # informative only: a damaged one is passed over, never a stop
+        try:
+            name, p = _string(body, 0)
+            return Metadata(name, _string_map(body, p)[0])
+        except (struct.error, UnicodeDecodeError):
+            return None
     return None
 
 
@@ -177,8 +196,8 @@ def _next_chunk(buf: mmap.mmap | bytes, after: int, size: int) -> int | None:
         return start
 
 
-def scan(path: str | Path, result: ScanResult) -> Iterator[Schema | Channel | Message]:
-    """Yield schema, channel and message records of the data section in file order.
+def scan(path: str | Path, result: ScanResult) -> Iterator[Schema | Channel | Message | Metadata]:
+    """Yield schema, channel, message and metadata records of the data section in file order.
 
     Damaged chunks whose record frame is intact are skipped (listed in result.damaged_chunks and
     result.damage, with the messages their message index lists); at a broken record frame the
@@ -193,7 +212,9 @@ def scan(path: str | Path, result: ScanResult) -> Iterator[Schema | Channel | Me
             yield from _scan_buffer(buf, size, result)
 
 
-def _scan_buffer(buf: mmap.mmap, size: int, result: ScanResult) -> Iterator[Schema | Channel | Message]:
+def _scan_buffer(
+    buf: mmap.mmap, size: int, result: ScanResult
+) -> Iterator[Schema | Channel | Message | Metadata]:
     if buf[:8] != MAGIC:
         result.stop_reason = "file does not start with the MCAP magic"
         return

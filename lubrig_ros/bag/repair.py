@@ -11,15 +11,21 @@ what is dropped is reported (where, why, and per topic how many when its message
 The rebuilt bag goes to ``output`` (a new directory beside the original, what `lubrig bag repair`
 does by default) or, with ``output=None``, replaces the original once completely written (the
 original kept as ``<name>.mcap.orig`` with backup).
+
+metadata.yaml is rebuilt from the MCAP: per topic the type hash its channel carries
+(``topic_type_hash``; a channel of an older bag has none and gets the type's
+hash, meta.type_hash), ``ros_distro`` as the bag recorded it (the old metadata.yaml, else the
+file's "rosbag2" record; this process's distribution if neither names one).
 """
 
 from __future__ import annotations
 
 import os
 import shutil
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import yaml
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
@@ -33,13 +39,40 @@ from lubrig_ros.bag.layout import (
     cdr_string,
     find_mcap,
 )
-from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan, summary_definitions
-from lubrig_ros.bag.meta import PROFILE, metadata_dict, metadata_texts
+from lubrig_ros.bag.mcapscan import (
+    Channel,
+    Message,
+    Metadata,
+    ScanResult,
+    Schema,
+    scan,
+    summary_definitions,
+)
+from lubrig_ros.bag.meta import PROFILE, QOS_KEY, TYPE_HASH_KEY, metadata_dict, metadata_texts, type_hash
 from lubrig_ros.bag.verify import verify_bag
 
 __all__ = ["RepairReport", "metadata_dict", "repair_bag", "repaired_path"]
 
 RUN_CONFIG_TOPIC_SUFFIX = "/run_config"
+#: A ros_distro that names no distribution: what older bags say (rosbags' name).
+NO_DISTRO = {"", "rosbags"}
+
+
+def _recorded_distro(info: object) -> str | None:
+    """The ros_distro of a rosbag2_bagfile_information mapping, None if it names no distribution."""
+    distro = info.get("ros_distro") if isinstance(info, dict) else None
+    return distro.strip() if isinstance(distro, str) and distro.strip() not in NO_DISTRO else None
+
+
+def _record_distro(rec: Metadata) -> str | None:
+    """The ros_distro of the file's "rosbag2" metadata record (serialized_metadata, or ROS_DISTRO)."""
+    if rec.name != "rosbag2":
+        return None
+    try:
+        info = yaml.safe_load(rec.metadata.get("serialized_metadata", "") or "{}")
+    except yaml.YAMLError:
+        info = None
+    return _recorded_distro(info) or _recorded_distro({"ros_distro": rec.metadata.get("ROS_DISTRO")})
 
 
 @dataclass
@@ -89,9 +122,12 @@ def repair_bag(
         return RepairReport(mcap_path, False, True, "", [], dict(verification.counts), problems=[])
     meta_path = bag_dir / "metadata.yaml"
     old_custom: dict[str, str] = {}
+    distro: str | None = None
     if meta_path.is_file():
         try:  # a damaged metadata.yaml is what repair replaces: keep what can be read of it
-            stored = dict(bag_information(bag_dir).get("custom_data") or {})  # type: ignore[call-overload]
+            info = bag_information(bag_dir)
+            distro = _recorded_distro(info)
+            stored = dict(info.get("custom_data") or {})  # type: ignore[call-overload]
             old_custom = {str(k): str(v) for k, v in stored.items()}
         except (BagError, TypeError, ValueError, AttributeError):
             old_custom = {}
@@ -126,6 +162,10 @@ def repair_bag(
                 return False
             schemas[schema.id] = schema
             out_schema[schema.id] = out.register_schema(schema.name, schema.encoding, schema.data)
+        if TYPE_HASH_KEY not in rec.metadata:  # an older bag: as rosbag2 writes it
+            rec = replace(
+                rec, metadata={**rec.metadata, TYPE_HASH_KEY: type_hash(schemas[rec.schema_id].name)}
+            )
         channels[rec.id] = rec
         out_channel[rec.id] = out.register_channel(
             rec.topic, rec.message_encoding, out_schema[rec.schema_id], rec.metadata
@@ -161,6 +201,8 @@ def repair_bag(
                     ch = channels[rec.channel_id]
                     if run_config is None and ch.topic.endswith(RUN_CONFIG_TOPIC_SUFFIX):
                         run_config = cdr_string(rec.data)
+                elif isinstance(rec, Metadata) and distro is None:
+                    distro = _record_distro(rec)
             if not channels:
                 raise BagError(
                     f"bag {str(bag)!r}: nothing to rebuild from, no intact chunk in its data section "
@@ -173,11 +215,11 @@ def repair_bag(
             if run_config is not None:
                 custom.setdefault(RUN_CONFIG_KEY, run_config)
             topics = [
-                (ch.topic, schemas[ch.schema_id].name, ch.metadata.get("offered_qos_profiles", ""),
-                 counts[cid])
+                (ch.topic, schemas[ch.schema_id].name, ch.metadata.get(QOS_KEY, ""), counts[cid])
                 for cid, ch in channels.items()
             ]
-            meta = metadata_dict(out_mcap.name, topics, start, end, custom)
+            hashes = {ch.topic: ch.metadata[TYPE_HASH_KEY] for ch in channels.values()}
+            meta = metadata_dict(out_mcap.name, topics, start, end, custom, hashes, distro)
             yaml_text, record_text = metadata_texts(meta)
             out.add_metadata("rosbag2", {"serialized_metadata": record_text})
             out.finish()
@@ -192,9 +234,16 @@ def repair_bag(
         raise
     topic_of = {cid: ch.topic for cid, ch in {**fallback_channels, **channels}.items()}
     report = RepairReport(
-        mcap_path, True, result.complete, result.stop_reason, result.damaged_chunks,
-        {channels[c].topic: n for c, n in counts.items()}, dropped, problems=problems,
-        damage=[d.line(topic_of) for d in result.damage], output=out_dir,
+        mcap_path,
+        True,
+        result.complete,
+        result.stop_reason,
+        result.damaged_chunks,
+        {channels[c].topic: n for c, n in counts.items()},
+        dropped,
+        problems=problems,
+        damage=[d.line(topic_of) for d in result.damage],
+        output=out_dir,
     )
     try:
         if output is None:

@@ -1,7 +1,8 @@
 """Crash-safe rosbag2/MCAP writer on the `mcap` package's writer (chunk and summary CRC-32s).
 
 The file is a rosbag2 bag as the rosbags writer made it before (metadata.yaml, profile ros2, one
-ros2msg schema per type, cdr channels with their offered QoS, a "rosbag2" metadata record), and
+ros2msg schema per type, cdr channels with their offered QoS, a "rosbag2" metadata record), with
+what rosbag2 writes besides (each channel's RIHS01 ``topic_type_hash``, the real ``ros_distro``), and
 every chunk carries the CRC-32 of its uncompressed records, the summary its CRC and the DataEnd
 record the CRC of the whole data section, so any damage is detectable (lubrig_ros.bag.verify).
 
@@ -33,10 +34,12 @@ from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, scan
 from lubrig_ros.bag.meta import (
     MESSAGE_ENCODING,
     PROFILE,
+    channel_metadata,
     message_definition,
     metadata_dict,
     metadata_texts,
     qos_text,
+    type_hash,
 )
 
 #: Default flush bound: a chunk at least every 0.2 s of log (rig) time or every 1000 messages.
@@ -122,9 +125,7 @@ class BagWriter:
         self.path = Path(path)
         check_output_path(self.path)
         if flush_period_ns <= 0 or flush_messages <= 0:
-            raise BagError(
-                f"flush bound {flush_period_ns} ns / {flush_messages} messages: expected both > 0"
-            )
+            raise BagError(f"flush bound {flush_period_ns} ns / {flush_messages} messages: expected both > 0")
         self.run_config = run_config
         self.flush_period_ns = int(flush_period_ns)
         self.flush_messages = int(flush_messages)
@@ -135,6 +136,7 @@ class BagWriter:
         self._channels: dict[str, int] = {}
         self._topic_info: dict[str, tuple[str, str]] = {}  # topic -> (msgtype, qos text)
         self._schemas: dict[str, int] = {}
+        self._type_hashes: dict[str, str] = {}  # msgtype -> RIHS01 hash (its channels' topic_type_hash)
         self.counts: dict[str, int] = {}
         self.lost: dict[str, int] = {}
         self.failed: str | None = None
@@ -149,8 +151,11 @@ class BagWriter:
             self.path.mkdir()
             self._stream: BinaryIO | None = open(self.mcap_path, "xb")  # noqa: SIM115 (kept open)
             self._mcap = McapWriter(
-                self._stream, chunk_size=2**62, compression=CompressionType.ZSTD,
-                enable_crcs=True, enable_data_crcs=True,
+                self._stream,
+                chunk_size=2**62,
+                compression=CompressionType.ZSTD,
+                enable_crcs=True,
+                enable_data_crcs=True,
             )
             self._mcap.start(profile=PROFILE, library=LIBRARY)
             self._stream.flush()
@@ -187,8 +192,12 @@ class BagWriter:
             if msgtype not in self._schemas:
                 encoding, text = message_definition(msgtype)
                 self._schemas[msgtype] = self._mcap.register_schema(msgtype, encoding, text.encode())
+                self._type_hashes[msgtype] = type_hash(msgtype)
             self._channels[topic] = self._mcap.register_channel(
-                topic, MESSAGE_ENCODING, self._schemas[msgtype], {"offered_qos_profiles": qos}
+                topic,
+                MESSAGE_ENCODING,
+                self._schemas[msgtype],
+                channel_metadata(qos, self._type_hashes[msgtype]),
             )
 
         self._guard(_add)
@@ -259,7 +268,8 @@ class BagWriter:
             self._abort()
             return
         topics = [(t, *self._topic_info[t], self.counts[t]) for t in self._channels]
-        meta = metadata_dict(self.mcap_path.name, topics, self._start, self._end, self.custom_data)
+        hashes = {t: self._type_hashes[self._topic_info[t][0]] for t in self._channels}
+        meta = metadata_dict(self.mcap_path.name, topics, self._start, self._end, self.custom_data, hashes)
         yaml_text, record_text = metadata_texts(meta)
         stream = self._stream
         assert stream is not None
