@@ -176,7 +176,7 @@ def test_realtime_takes_band_values_by_sample_index():
     assert session.held_samples == 1  # sample 5 had no value of its own: the last one held
     assert session.band_block([5e-7], segment=0, first_sample_index=1) == 1  # too late
     assert session.band_block([5e-7], segment=7, first_sample_index=6) == 0  # another segment
-    assert session.stale_blocks == 1 and session._band_ahead.late == 1
+    assert session.stale_blocks == 1 and session.rules.late_band() == 1
     session.reset(default_config())
     session.band_block([6e-7], segment=1, first_sample_index=0)
     session.tick()
