@@ -3,7 +3,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: setup run test test-fast lint typecheck bench
+.PHONY: setup ament-index run test test-fast lint typecheck bench
 
 $(STAMP): requirements.txt setup.py test/support/pyproject.toml
 	python3 -m venv $(VENV)
@@ -47,7 +47,16 @@ $(CLIENT_STAMP): $(CLIENT_DIR)/package.json $(CLIENT_DIR)/package-lock.json
 		cd $(CLIENT_DIR) && npm ci --no-audit --no-fund --loglevel=error && touch node_modules/.installed; \
 	else echo "npm not found: the Foxglove client of test/test_view_foxglove.py is not installed"; fi
 
-setup: $(STAMP) $(IFACE_STAMP) $(CLIENT_STAMP)
+# lubrig_ros in the venv prefix's ament index, as colcon's ament_python build (--symlink-install)
+# installs it: share/ament_index/.../packages/lubrig_ros, share/lubrig_ros/{package.xml,launch,config}
+# and lib/lubrig_ros/<console script>, all symlinks (to the work tree's files, and to .venv/bin/<name>),
+# from setup.py's data_files and entry points. Run by every make setup (cheap, changes only what is
+# out of date, atomically), so `ros2 run lubrig_ros plant` / `ros2 launch lubrig_ros rig.launch.py`
+# work with AMENT_PREFIX_PATH=.venv on a machine with ROS 2 (README "ros2 run and ros2 launch").
+ament-index: $(STAMP)
+	$(PY) -m lubrig_ros.app.ament_install --prefix $(VENV) --source .
+
+setup: $(STAMP) $(IFACE_STAMP) $(CLIENT_STAMP) ament-index
 
 # The main job: the node suite (belt_drive, plant, analysis, recorder) on study case 1 in simulated
 # time, recorded to runs/latest/bag, then the report; the last line printed is the report's path.

@@ -49,6 +49,7 @@ class Recorder:
         self.samples: list[PlantSample] = []
         self.complete: list[bool] = []
         self.logs: list[tuple[str, str]] = []
+        self.failures: list[str] = []
 
     def session(self, config, mode="sim", clock=None, **settings) -> PlantSession:
         return PlantSession(
@@ -56,6 +57,7 @@ class Recorder:
             PlantSettings(mode, **settings),
             on_sample=self.samples.append,
             on_complete=self.complete.append,
+            on_failure=self.failures.append,
             log=lambda level, text: self.logs.append((level, text)),
             clock=clock or FakeClock(),
         )
@@ -349,25 +351,59 @@ class FailingOnce:
             )
         return self.inner.advance(band)
 
+    def advance_bounded(self, band, max_attempts):
+        return self.advance([band])
+
 
 @pytest.mark.parametrize("how", ["raise", "nan"])
-def test_a_failed_sample_restarts_at_the_next_sample_time(case1, how):
-    config, _ = case1
+def test_a_failed_sample_ends_the_run_and_nothing_is_made_up(case1, how):
+    config, ref = case1
     rec = Recorder()
     session = rec.session(config)
     _feed(session, config, 0, 50)
     session.integrator = FailingOnce(session.integrator, how)
     _feed(session, config, 50, config.samples - 50)
-    times = rec.column("time")
-    assert len(times) == config.samples + 1 and session.complete  # the run still completes
-    assert np.all(np.diff(times) > 0)  # rig time stays monotonic
-    assert times[51] == pytest.approx(51 / config.sample_rate)  # restarted at the next sample time
-    assert session.integration_errors == 1
-    text = next(t for level, t in rec.logs if level == "error")
-    assert "integration failed at t = 0.051" in text and "restarted at equilibrium" in text
-    assert all(math.isfinite(s.displacement) for s in rec.samples)
-    timing = {s.name: s for s in session.diagnostics()}["timing"].as_dict()
-    assert timing["integration_errors"] == "1"
+    # the initial state and the 50 samples before the failure, equal to the simulation; no more
+    assert len(rec.samples) == 51 and not session.complete and rec.complete == []
+    assert np.array_equal(rec.column("displacement"), ref.displacement[:51])
+    assert session.integration_errors == 1 and session.ignored_after_end == config.samples - 50
+    # one ERROR and one on_failure, naming the time, the band value and the parameters
+    errors = [t for level, t in rec.logs if level == "error"]
+    assert len(errors) == 1 and rec.failures == [session.fault]
+    band = float(band_samples(config, 50, 1)[0])
+    assert "integration failed at t = 0.051 s" in errors[0] and f"band velocity {band!r} m/s" in errors[0]
+    assert "mass" in errors[0] and "rtol" in errors[0] and "no more output until a reset" in errors[0]
+    timing = {s.name: s for s in session.diagnostics()}["timing"]
+    assert timing.level == "error" and timing.message == session.fault
+    assert timing.as_dict()["integration_errors"] == "1"
+    # a reset clears the fault: the next segment runs
+    session.reset(config)
+    assert session.fault is None
+    _feed(session, config, 0, 10)
+    assert [s.segment for s in rec.samples[51:]] == [1] * 11
+
+
+@pytest.mark.parametrize("how", ["raise", "nan"])
+def test_a_failed_realtime_sample_stops_the_output_until_a_reset(how):
+    rec = Recorder()
+    config = default_config()
+    session = rec.session(config, mode="rig_in_loop")
+    session.band_input(3e-7)
+    session.emit_initial()
+    for _ in range(5):
+        assert session.tick()
+    session.integrator = FailingOnce(session.integrator, how)
+    assert not session.tick() and session.fault is not None
+    for _ in range(5):  # no output, no further error, the failure is not an overrun
+        assert not session.tick()
+    assert len(rec.samples) == 6 and all(math.isfinite(s.displacement) for s in rec.samples)
+    assert len(rec.failures) == 1 and len([1 for level, _ in rec.logs if level == "error"]) == 1
+    assert session.overruns == 0 and session.integration_errors == 1
+    assert {s.name: s for s in session.diagnostics()}["timing"].level == "error"
+    session.reset(config)
+    session.emit_initial()
+    assert session.fault is None and session.tick()
+    assert [s.segment for s in rec.samples[6:]] == [1, 1]
 
 
 def test_parameter_defaults_and_configuration_rebuild():

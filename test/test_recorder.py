@@ -100,6 +100,21 @@ def test_sigkill_then_repair_keeps_flushed_messages(procs, tmp_path: Path) -> No
     assert check_bag(bag).run_config is not None  # recovered from the /lubrig/run_config message
 
 
+def test_sigkill_of_the_recorder_alone_leaves_no_process_behind(procs, tmp_path: Path) -> None:
+    """The fork server and the workers die with the recorder, even of a SIGKILL no handler sees."""
+    import os
+
+    import psutil
+
+    rec, _bag, _cfg, _published = _record(procs, tmp_path, 200)
+    helpers = psutil.Process(rec.pid).children(recursive=True)
+    assert len(helpers) >= 2, helpers  # the fork server and at least one worker (and a resource tracker)
+    os.kill(rec.pid, signal.SIGKILL)  # the recorder only, not its process group
+    rec.popen.wait(timeout=10)
+    _gone, alive = psutil.wait_procs(helpers, timeout=10)
+    assert not alive, [(p.pid, p.name(), p.cmdline()[:4]) for p in alive]
+
+
 def test_realtime_source_counts_reported_equal_the_bag(procs, tmp_path: Path) -> None:
     """A paced 1 kHz source without flow control: samples a starved recorder loses are accounted.
 

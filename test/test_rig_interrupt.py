@@ -7,6 +7,7 @@ and exits 130, and the bag it leaves is readable with every recorded sample in o
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import time
@@ -37,3 +38,25 @@ def test_ctrl_c_stops_the_rig_cleanly(ros_env, tmp_path):
     result = verify_bag(run / "bag")
     assert not result.structural, result.problems
     assert not result.problems, result.problems  # gap-free, in order
+
+
+def test_sigkill_of_the_launcher_takes_every_rig_process_with_it(ros_env, tmp_path):
+    """No process of the rig outlives `lubrig rig`, even killed by a signal it cannot handle."""
+    import psutil
+
+    launcher = start_long_rig(ros_env, tmp_path / "run", new_session=True)
+    try:
+        time.sleep(2.0)  # samples flowing
+        rig = psutil.Process(launcher.pid).children(recursive=True)
+        names = {" ".join(p.cmdline()[:3]) for p in rig}
+        assert len(rig) >= 5, names  # belt_drive, analysis, plant, the recorder and its helpers
+        os.kill(launcher.pid, signal.SIGKILL)  # the launcher only, not its process group
+        launcher.communicate(timeout=30)
+        _gone, alive = psutil.wait_procs(rig, timeout=30)
+        assert not alive, [" ".join(p.cmdline()[:3]) for p in alive]
+        # each node stopped as on a clean stop: the recorder finalized what it had
+        result = verify_bag(tmp_path / "run" / "bag")
+        assert not result.structural, result.problems
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(launcher.pid, signal.SIGKILL)

@@ -42,6 +42,9 @@ DEFAULT_MAX_LAG = 0.02
 DEFAULT_OUTPUT_BLOCK_LENGTH = 20
 #: Exit status of a wall-clock plant (and `lubrig rig`) whose run did not hold real time.
 EXIT_REAL_TIME_NOT_HELD = 3
+#: Exit status of a stepped-mode plant (sim, lockstep) whose run ended on a sample that could
+#: not be integrated (app/plant_session.py, "Integration failure"); `lubrig rig` ends with it.
+EXIT_INTEGRATION_FAILED = 4
 #: Band samples belt_drive sends ahead of the realtime plant (its flow_progress).
 DEFAULT_LOOKAHEAD = 200
 
@@ -254,7 +257,8 @@ TOPICS: tuple[Topic, ...] = (
 
 SERVICES: tuple[Service, ...] = (
     Service("plant/reset", "std_srvs/srv/Trigger", "plant",
-            "rig time back to 0 and the initial state; pending rig-parameter updates applied"),
+            "rig time back to 0 and the initial state in a new segment; pending rig-parameter "
+            "updates applied (sim: /clock and the stamps go on from the old segment's end, never back)"),
     Service("plant/pause", "std_srvs/srv/SetBool", "plant",
             "true pauses, false resumes (sim: band samples queue up while paused and are "
             "integrated on resume)"),
@@ -530,8 +534,9 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
         _p("mode", "string", "sim", " | ".join(MODES), choices=MODES),
         _p("sample_rate", "double", None, "output rate", unit="Hz", low=0.0, low_open=True,
            from_config="simulation.sample_rate"),
-        _p("duration", "double", None, "run length in rig time (sim mode)", unit="s", low=0.0,
-           low_open=True, from_config="simulation.duration"),
+        _p("duration", "double", None,
+           "run length in rig time (sim mode; wall-clock modes: with exit_when_complete)", unit="s",
+           low=0.0, low_open=True, from_config="simulation.duration"),
         _p("rtol", "double", None, "integrator relative tolerance; applied at the next reset",
            low=1e-13, high=1e-2, read_only=False, from_config="simulation.rtol"),
         _p("initial_perturbation", "double", None, "x(0) = (1 + this) x0; applied at the next reset",
@@ -585,6 +590,11 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
         _p("publish_clock", "bool", False,
            "sim: publish rig time on the global /clock (one per block + 5 Hz heartbeat); one "
            "owner per ROS domain: the launcher turns it on for a single rig only"),
+        _p("exit_when_complete", "bool", False,
+           "end the node once its run is over, exit status 0 (3 if a wall-clock run did not hold "
+           "real time): sim, lockstep once run_complete is true; realtime, rig_in_loop once the "
+           "sample at `duration` (counted from the first sample) is published; launch/rig.launch.py "
+           "sets it, `lubrig rig` stops the nodes itself"),
         _p("scalar_topics", "bool", False,
            "also publish displacement, velocity and friction_coefficient as std_msgs/Float64, one "
            "message per sample (about 3 x 37 us per sample for the plant, and the same per "

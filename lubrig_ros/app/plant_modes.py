@@ -87,6 +87,9 @@ class SteppedRules(ModeRules):
     ) -> int:
         s = self.s
         band = band[good]
+        if s.fault is not None:  # a failed sample ended the run: nothing more is integrated
+            s.ignored_after_end += band.size
+            return 0
         if segment is not None and segment != s.segment:
             s.stale_blocks += 1
             return 0
@@ -147,7 +150,7 @@ class SteppedRules(ModeRules):
         s = self.s
         while self.queue and not s.paused:
             band = self.queue.popleft()
-            if s.complete:
+            if s.complete or s.fault is not None:
                 s.ignored_after_end += band.size
                 continue
             room = s.total - s.sample_index
@@ -166,7 +169,8 @@ class SteppedRules(ModeRules):
         parts = [] if s.emitted_initial else [s.integrator.current()]
         s.emitted_initial = True
         traj = self._advance_block(band)
-        s.sample_index += band.size
+        s.sample_index += len(traj)
+        s.ignored_after_end += band.size - len(traj)  # after a failed sample (s.fault)
         parts.append(traj)
         s.emit_block(parts[0] if len(parts) == 1 else concatenate(parts))
         self.emitted()
@@ -175,7 +179,7 @@ class SteppedRules(ModeRules):
         """A block went out (lockstep starts its round trip)."""
 
     def _advance_block(self, band: np.ndarray) -> Trajectory:
-        """The block in one stepper call; on a failure, again sample by sample (session.advance)."""
+        """The block in one stepper call; on a failure, again sample by sample up to a failed one."""
         s = self.s
         if band.size > 1:
             saved = s.integrator.snapshot()
@@ -186,7 +190,15 @@ class SteppedRules(ModeRules):
             except (ValueError, ArithmeticError, RuntimeError):
                 pass
             s.integrator.restore(saved)
-        return concatenate([s.advance(float(b)) for b in band])
+        done = []
+        for b in band:
+            one = s.advance(float(b))
+            if one is None:  # s.fault says why; the samples before it are emitted
+                break
+            done.append(one)
+        if not done:
+            return Trajectory(**{name: np.zeros(0) for name, _ in Trajectory.COLUMNS})
+        return concatenate(done)
 
 
 class LockstepRules(SteppedRules):

@@ -4,7 +4,7 @@
 (`band_input`, one value; `band_block`, consecutive values), runs `run_realtime` on its loop
 thread in the realtime modes, forwards reset/pause requests and parameter updates, and publishes
 what the session hands to its sinks (`on_sample` per sample, `on_block` per block of samples,
-`on_complete`, `on_fault`, `log`).
+`on_complete`, `on_fault`, `on_failure`, `log`).
 
 Modes (app/contract.MODES), in two families:
 
@@ -46,9 +46,15 @@ restart at 0 with it. `published` is the index of the next sample to emit in the
 segment (samples emitted plus those skipped): what the plant reports on flow_progress.
 
 Band values that are not finite or exceed `band_velocity_limit` in magnitude are rejected in every
-mode: counted, the last one reported, never integrated. A sample whose integration fails (an
-exception or a non-finite state) restarts the rig at equilibrium for that band velocity at the
-next sample time, so rig time stays monotonic and a sim run still completes.
+mode: counted, the last one reported, never integrated.
+
+Integration failure: a sample that cannot be integrated (an exception of the integrator, or a
+non-finite state) is never emitted, and nothing is made up in its place. The session goes to a
+fault (`fault`: the rig time, the band value and the parameters that made it fail), logs it once
+(ERROR) and calls `on_failure` once; the timing status is ERROR with it. Stepped modes: the
+samples before it are emitted, band input after it is counted (`ignored_after_end`) and dropped,
+the run does not complete (the sim plant node then ends with EXIT_INTEGRATION_FAILED). Wall-clock
+modes: no output until a reset, which clears the fault (docs/nodes.md).
 
 Thread safety: every public method takes the session's lock, so the real-time loop thread and the
 executor's callbacks may call it concurrently; sinks are called with the lock held (in order).
@@ -123,6 +129,7 @@ class PlantSession(PlantState):
         on_block: Callable[[PlantBlock], None] = nothing,
         on_complete: Callable[[bool], None] = nothing,
         on_fault: Callable[[str], None] = nothing,
+        on_failure: Callable[[str], None] = nothing,
         log: Callable[[str, str], None] = nothing,
         clock: Callable[[], float] = time.monotonic,
         config: RunConfig | None = None,
@@ -134,6 +141,7 @@ class PlantSession(PlantState):
             on_block=on_block,
             on_complete=on_complete,
             on_fault=on_fault,
+            on_failure=on_failure,
             log=log,
             clock=clock,
             config=config,

@@ -15,7 +15,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, overload
+from typing import Any
 
 import numpy as np
 
@@ -82,6 +82,7 @@ class PlantState:
         on_block: Callable[[PlantBlock], None] = nothing,
         on_complete: Callable[[bool], None] = nothing,
         on_fault: Callable[[str], None] = nothing,
+        on_failure: Callable[[str], None] = nothing,
         log: Callable[[str, str], None] = nothing,
         clock: Callable[[], float] = time.monotonic,
         config: RunConfig | None = None,
@@ -90,7 +91,7 @@ class PlantState:
         self.settings = settings or PlantSettings()
         self.mode = self.settings.mode
         self.on_sample, self.on_complete, self.log, self.clock = on_sample, on_complete, log, clock
-        self.on_block, self.on_fault = on_block, on_fault
+        self.on_block, self.on_fault, self.on_failure = on_block, on_fault, on_failure
         self.lock = threading.RLock()
         self.config = config if config is not None else base
         self.integrator: RigIntegrator = integrator_for(self.config)
@@ -128,7 +129,7 @@ class PlantState:
         self.skipped = 0  # samples skipped (lag_policy skip)
         self.skip_events = 0
         self.skipped_reported = 0
-        self.fault: str | None = None  # lag_policy stop: why the rig stopped
+        self.fault: str | None = None  # why nothing is emitted (lag_policy stop, integration failure)
         self.segment_start: float | None = None  # clock() due time of sample 0 of the segment
         self.held_real_time = True
         self.round_trips = LatencyHistogram()  # lockstep: state emitted -> next band value
@@ -150,17 +151,12 @@ class PlantState:
             return restart
 
     # ---- integration and output ----------------------------------------------------------
-    @overload
-    def advance(self, band: float) -> Trajectory: ...
-    @overload
-    def advance(self, band: float, max_attempts: int) -> Trajectory | None: ...
-
     def advance(self, band: float, max_attempts: int | None = None) -> Trajectory | None:
-        """One sample; a failed one restarts the rig at equilibrium at the next sample time.
+        """One sample, or None: unfinished (its step budget ran out) or failed (`fail`).
 
-        Restarting there (not at t = 0) keeps rig time monotonic and the sample count right, so a
-        sim run still completes and belt_drive's flow control does not stall. With `max_attempts`
-        (realtime ticks) None means the sample is unfinished: call again with the same band value.
+        With `max_attempts` (wall-clock ticks) an unfinished sample carries on at the next call
+        with the same band value. A failed one (an exception of the integrator, or a non-finite
+        state) is never emitted: the integrator stays where it was and `fault` says why.
         """
         t_next = self.integrator.time + self.integrator.dt
         try:
@@ -176,14 +172,26 @@ class PlantState:
             problem = "non-finite state"
         except (ValueError, ArithmeticError, RuntimeError) as exc:
             problem = str(exc)
+        self.fail(t_next, band, problem)
+        return None
+
+    def fail(self, t: float, band: float, problem: str) -> None:
+        """The sample due at rig time t could not be integrated: the fault, ERROR once, on_failure.
+
+        Nothing more is emitted until a reset (which clears the fault); the message names the
+        time, the band value and the parameters that made it fail.
+        """
         self.integration_errors += 1
-        self.log(
-            "error",
-            f"integration failed at t = {t_next:.6g} s ({problem}); rig restarted at equilibrium "
-            f"for band velocity {band!r} m/s",
+        rig = self.config.rig
+        self.fault = (
+            f"integration failed at t = {t:.6g} s (sample {round(t * self.config.sample_rate)} of "
+            f"segment {self.segment}) for band velocity {band!r} m/s: {problem}; parameters: "
+            f"mass {rig.mass:g} kg, "
+            f"natural_frequency {rig.natural_frequency:g} Hz, damping_ratio {rig.damping_ratio:g}, "
+            f"{rig.coupling_label}, friction {rig.friction!r}, rtol {self.config.rtol:g}"
         )
-        self.integrator.reset(band_velocity=band, time=t_next)
-        return self.integrator.current()
+        self.log("error", self.fault + "; no more output until a reset")
+        self.on_failure(self.fault)
 
     def emit(self, traj: Trajectory, lateness: float) -> None:
         """Emit a one-sample trajectory (wall-clock modes): on_sample, and into the block buffer."""

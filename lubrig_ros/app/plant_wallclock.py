@@ -206,10 +206,14 @@ class WallClockRules(ModeRules):
         """Advance one sample and emit it; True if emitted (see PlantSession.tick)."""
         s = self.s
         with s.lock:
+            if s.fault is not None:  # lag_policy stop, or a failed sample: nothing until a reset
+                return False
             if self.pending_band is None:
                 self.pending_band, self.pending_recv = self.next_band()
             traj = s.advance(self.pending_band, s.settings.tick_step_attempts)
             done = s.clock()
+            if traj is None and s.fault is not None:  # failed: nothing more until a reset
+                return False
             if traj is None:  # the sample's step budget ran out: carry on at the next call
                 s.overruns += 1
                 return False
@@ -277,18 +281,13 @@ class WallClockRules(ModeRules):
         try:
             traj = s.integrator.advance(band)
             finite = np.isfinite(traj.displacement).all() and np.isfinite(traj.velocity).all()
-        except (ValueError, ArithmeticError, RuntimeError):
-            finite = False
-        if finite:
-            s.travel.add_many(traj.time, traj.band_velocity)
-        else:
-            s.integration_errors += 1
-            t_next = t0 + band.size * s.integrator.dt
-            s.log(
-                "error",
-                f"integration of skipped samples failed; rig restarted at equilibrium at t = {t_next:.6g} s",
-            )
-            s.integrator.reset(band_velocity=float(band[-1]), time=t_next)
+            problem = "" if finite else "non-finite state"
+        except (ValueError, ArithmeticError, RuntimeError) as exc:
+            problem = str(exc)
+        if problem:  # nothing of it is emitted; the fault holds the loop until a reset
+            s.fail(t0 + s.integrator.dt, float(band[0]), f"{problem} (in {count} skipped samples)")
+            return
+        s.travel.add_many(traj.time, traj.band_velocity)
         s.sample_index += band.size
         s.published += band.size
         s.blocks.skip(band.size)

@@ -15,7 +15,10 @@ Sim mode: belt_drive streams band blocks paced on <ns>/flow_progress (app/flow.p
 the recorder's participant (`<ns>/lubrig_recorder`, contract.RECORDER_PARTICIPANT) is one of
 belt_drive's `required_consumers`, so a slow recorder slows the run instead of losing samples.
 The plant publishes the global /clock (`publish_clock`) unless `--no-clock` is given: /clock has
-one owner per ROS domain, so a second rig on the same domain runs with `--no-clock`.
+one owner per ROS domain, so a second rig on the same domain runs with `--no-clock`. Every node
+of a sim rig runs with `use_sim_time` true (belt_drive, plant, analysis, and the recorder's
+nodes with `--use-sim-time`); their stamps are rig time from the rig's own samples, with or
+without /clock, and nothing paces on /clock (docs/nodes.md, "Sim time").
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from pathlib import Path
 
 from ..app.contract import (
     DEFAULT_NAMESPACE,
+    EXIT_INTEGRATION_FAILED,
     EXIT_REAL_TIME_NOT_HELD,
     RECORDER_PARTICIPANT,
     parameter,
@@ -39,6 +43,7 @@ from ..app.contract import (
     validate_namespace,
 )
 from ..app.discovery import discovery_environment
+from ..app.lifetime import die_with_parent
 from ..app.rundir import prepare_output_dir
 from ..app.selection import RunSelection
 from ..core.params import CONVENTIONS, ParameterError
@@ -58,6 +63,18 @@ SIM_RECORDER_WORKERS = 1
 #: (a run that cannot progress; a loaded machine's pauses of a few seconds are not one).
 STALL_GIVE_UP_S = 15.0
 RECORDER_READY_S = 60.0
+#: Exit statuses of a node that ended cleanly: 0, or killed by the SIGINT that stops it while it is
+#: still importing (nodes/entry.py); launch/rig.launch.py uses the same rule.
+CLEAN_EXITS = (0, -signal.SIGINT)
+
+
+def _die_with_launcher() -> None:
+    """In a node process before exec: SIGTERM when the launcher ends, however it ends.
+
+    SIGTERM, not SIGKILL: the node stops as on `lubrig rig`'s own stop (the recorder finalizes
+    the bag); the recorder's helpers are killed with the recorder (nodes/recorder_forkserver.py).
+    """
+    die_with_parent(signal.SIGTERM)
 
 
 def _executable(name: str) -> str:
@@ -334,6 +351,9 @@ def run(args: argparse.Namespace) -> int:
     clock = mode == "sim" and not getattr(args, "no_clock", False)
     if clock:
         per_node["plant"]["publish_clock"] = True
+    if mode == "sim":  # every node on the rig's ROS clock (/clock; stamps from the rig's own time)
+        for params in per_node.values():
+            params["use_sim_time"] = True
     procs: dict[str, subprocess.Popen] = {}
     discovery = discovery_environment(os.environ, args.network)  # this host only unless asked
     env = discovery.env
@@ -359,6 +379,7 @@ def run(args: argparse.Namespace) -> int:
                     env=env,
                     stdout=log,
                     stderr=subprocess.STDOUT,
+                    preexec_fn=_die_with_launcher,  # a launcher killed by SIGKILL takes its nodes with it
                 )
             if mode != "sim":  # realtime: nothing paces the nodes on the recorder, so it comes first
                 _wait_ready("recorder", procs["recorder"], logs / "recorder.log")
@@ -366,7 +387,7 @@ def run(args: argparse.Namespace) -> int:
             with open(logs / "view.log", "w") as log:
                 procs["view"] = subprocess.Popen(
                     [_executable("view"), "--namespace", namespace, "--port", str(args.view)], env=env,
-                    stdout=log, stderr=subprocess.STDOUT,
+                    stdout=log, stderr=subprocess.STDOUT, preexec_fn=_die_with_launcher,
                 )
             _wait_ready("view", procs["view"], logs / "view.log")
             print(f"lubrig rig: live view on ws://127.0.0.1:{args.view} (Foxglove; log {logs / 'view.log'})")
@@ -384,6 +405,7 @@ def run(args: argparse.Namespace) -> int:
                     env=env,
                     stdout=log,
                     stderr=subprocess.STDOUT,
+                    preexec_fn=_die_with_launcher,
                 )
         if with_recorder and mode == "sim":
             # sim: plant and belt_drive wait for the recorder's subscriptions and flow_progress, so
@@ -408,7 +430,8 @@ def run(args: argparse.Namespace) -> int:
             bar.finish()
             if not complete and stall:
                 raise CommandError(f"sim run stalled for {STALL_GIVE_UP_S:g} s: {stall[0]}; see {logs}")
-            if not complete:
+            failed = not complete and procs["plant"].poll() == EXIT_INTEGRATION_FAILED
+            if not complete and not failed:
                 dead = [n for n, p in procs.items() if p.poll() is not None]
                 why = f"process(es) {dead} exited" if dead else f"timeout after {limit:g} s"
                 raise CommandError(f"sim run did not complete ({why}); see {logs}")
@@ -429,9 +452,10 @@ def run(args: argparse.Namespace) -> int:
         codes = stop_all(ordered)
         if "recorder" in procs:
             codes |= stop_all({"recorder": procs["recorder"]}, RECORDER_GRACE_S)
-    bad = {n: c for n, c in codes.items() if c not in (0, -signal.SIGINT)}
+    bad = {n: c for n, c in codes.items() if c not in CLEAN_EXITS}
     late = bad.get("plant") == EXIT_REAL_TIME_NOT_HELD and mode != "sim"
-    if late:
+    failed = bad.get("plant") == EXIT_INTEGRATION_FAILED and mode == "sim"
+    if late or failed:
         del bad["plant"]
     if math.isnan(wall):
         print(f"lubrig rig: interrupted before the run ended; what was recorded is in {bag}")
@@ -445,6 +469,9 @@ def run(args: argparse.Namespace) -> int:
         print("  (--no-recorder: nothing recorded)")
     if bad:
         raise CommandError(f"node(s) exited with errors {bad}; see {logs}")
+    if failed:  # what was published before the failed sample is recorded; no report of a broken run
+        print(f"lubrig rig: error: {_plant_verdict(logs / 'plant.log', 'the run ends')}", file=sys.stderr)
+        return EXIT_INTEGRATION_FAILED
     if with_recorder and not args.no_report and not math.isnan(wall):
         from ..report import write_report
 
@@ -455,6 +482,15 @@ def run(args: argparse.Namespace) -> int:
     if math.isnan(wall):
         return 130  # 128 + SIGINT: interrupted, as a shell reports it
     return EXIT_REAL_TIME_NOT_HELD if late else 0
+
+
+def _plant_verdict(log: Path, marker: str) -> str:
+    """The plant's last log line holding `marker`, from the marker on (the whole line if none)."""
+    lines = log.read_text(errors="replace").splitlines() if log.is_file() else []
+    said = [line for line in lines if marker in line]
+    if not said:
+        return f"the plant ended without saying why; see {log}"
+    return said[-1][said[-1].index(marker) :]
 
 
 def _real_time_verdict(log: Path) -> str:

@@ -3,14 +3,17 @@
 Subscribes to <ns>/state_block (RigStateBlock: the plant publishes it in every mode, in the
 wall-clock modes one per output_block_length samples) and, with `per_sample_input`, to
 <ns>/state (RigState, one message per sample: for a plant that publishes only those); the band
-velocity comes with each sample. Every `publish_period` s (wall) the samples received since the
-last update go into app.analysis_session.AnalysisSession, and the node publishes what it
-returns: the dominant frequency, the newest wavelet power columns (Float64MultiArray, dims
-["frequency", "time"], and WaveletFrame with its frequency and time axes), an rgb8 image of the
-window's power, the linear zone and ζ_crit at the current band velocity, every stability flag
-with its values (StabilityFlags; also on /diagnostics, one status per flag group) and
-<ns>/oscillation_growing. Header stamps come from the node clock (sim time when the node runs
-with use_sim_time); WaveletFrame's start/end are the rig times of its first and last column.
+velocity comes with each sample. Every `publish_period` s of wall time (a steady-clock timer in
+every mode, so the analysis never waits for /clock) the samples received since the last update go
+into app.analysis_session.AnalysisSession, and the node publishes what it returns: the dominant
+frequency, the newest wavelet power columns (Float64MultiArray, dims ["frequency", "time"], and
+WaveletFrame with its frequency and time axes), an rgb8 image of the window's power, the linear
+zone and ζ_crit at the current band velocity, every stability flag with its values
+(StabilityFlags; also on /diagnostics, one status per flag group) and <ns>/oscillation_growing.
+Header stamps: with use_sim_time (a sim rig) the rig time of the newest sample analysed (the
+stamp of the plant's samples, not the node clock: they hold with --no-clock and however far the
+rig has run on meanwhile; before the first sample the node clock), without it (realtime) the node
+clock at publication; WaveletFrame's start/end are the stamps of its first and last column.
 The rig comes from case/config_file and is replaced by the plant's latched <ns>/run_config when
 it arrives. Topics, QoS, parameters: app/contract.py.
 """
@@ -21,6 +24,7 @@ import array
 import math
 
 import numpy as np
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 from sensor_msgs.msg import Image
@@ -97,8 +101,12 @@ class Analysis(Node):
         if values["per_sample_input"]:
             create_subscription(self, "state", self._on_state)
         create_subscription(self, "run_config", self._on_run_config)
-        self.create_timer(values["publish_period"], self._tick)
-        self.get_logger().info(f"analysis: window {settings.window} samples, {settings.n_scales} scales")
+        self.sim_time = common.uses_sim_time(self)
+        common.steady_timer(self, values["publish_period"], self._tick)
+        self.get_logger().info(
+            f"analysis: window {settings.window} samples, {settings.n_scales} scales, "
+            f"use_sim_time {str(self.sim_time).lower()}"
+        )
 
     def _on_run_config(self, msg: String) -> None:
         problem = self.session.run_config_input(msg.data)
@@ -127,6 +135,14 @@ class Analysis(Node):
         if out.skipped is not None:
             self.get_logger().warning(f"analysis update skipped: {out.skipped}", throttle_duration_sec=5.0)
 
+    def _stamp(self, out: AnalysisOutput) -> Time:
+        """The stamp of an update's outputs (module docstring): rig time of its data, or now."""
+        if self.sim_time and out.newest_time is not None:
+            stamp = Time()
+            stamp.sec, stamp.nanosec = cdr.stamp_of(max(0.0, out.newest_time))
+            return stamp
+        return self.get_clock().now().to_msg()
+
     def _publish(self, out: AnalysisOutput) -> None:
         p = self.pubs
         if out.linear_zone is not None:
@@ -142,7 +158,7 @@ class Analysis(Node):
             ]
             msg.data = out.power.ravel().tolist()
             p["wavelet_power"].publish(msg)
-        now = self.get_clock().now().to_msg()
+        now = self._stamp(out)
         if out.power is not None and out.frequencies is not None:
             frame = WaveletFrame()
             frame.header.stamp = now
@@ -163,7 +179,7 @@ class Analysis(Node):
             p["dominant_frequency"].publish(Float64(data=out.dominant_frequency))
         if out.image is not None:
             image = Image()
-            image.header.stamp = self.get_clock().now().to_msg()
+            image.header.stamp = now
             image.header.frame_id = "wavelet"
             image.height, image.width = out.image.shape[0], out.image.shape[1]
             image.encoding = "rgb8"

@@ -7,7 +7,10 @@ on <ns>/flow_progress (app/flow.py FlowGate; nothing is dropped, nothing skipped
 slows the run). It starts once the plant and every required consumer have reported, follows the
 plant's segment (a plant reset: the profile restarts at t = 0 for the new segment) and stops
 after the configured duration. The global /clock plays no part (two rigs on one domain stay
-apart). `realtime` sends the band samples ahead of the plant, each with its sample index: on
+apart; every timer runs on the steady clock, so use_sim_time changes nothing here): a band block
+is stamped with the rig time of its first sample on the plant's clock, which the plant's
+flow_progress stamps give (it goes on across resets, nodes/plant.py). `realtime` sends the band
+samples ahead of the plant, each with its sample index: on
 every flow_progress of the plant (one per state_block, about 50 per second) the blocks that keep
 `lookahead` samples ahead of it, v_band(k / sample_rate) for sample index k - 1 as in sim mode,
 so the plant's sample k uses the profile at its own rig time whatever the delivery jitter; a
@@ -96,6 +99,9 @@ class BeltDrive(Node):
         self.segment: int | None = None
         self.seen_at: float | None = None
         self.started = False
+        # sim: (segment, ROS time in ns of its t = 0) from the plant's flow_progress; the band
+        # blocks are stamped on the rig's clock, which runs on across resets (nodes/plant.py)
+        self._origin: tuple[int, int] = (0, 0)
         if self.mode == "sim":
             problem = flow_window_problem(self.flow_window, self.block_length)
             if problem is not None:
@@ -108,7 +114,8 @@ class BeltDrive(Node):
             self._block = BandVelocityBlock()
             self._block.sample_period = 1.0 / self.sample_rate
             create_subscription(self, "flow_progress", self._on_progress)
-            self.create_timer(0.05, self._pump)
+            # steady clock: pacing is on flow_progress alone, never on /clock (use_sim_time or not)
+            common.steady_timer(self, 0.05, self._pump)
             self._waiting_logged = 0.0
             self.get_logger().info(
                 f"sim: paced by {plant} and required consumers {list(required) or 'none'}, "
@@ -126,7 +133,8 @@ class BeltDrive(Node):
                 f"realtime: band samples {self.lookahead} ahead of {self.plant} (its flow_progress)"
             )
         self.get_logger().info(
-            f"belt_drive: mode={self.mode}, {self.sample_rate:g} Hz, profile {profile_to_dict(self.profile)}"
+            f"belt_drive: mode={self.mode}, {self.sample_rate:g} Hz, "
+            f"profile {profile_to_dict(self.profile)}, use_sim_time {str(common.uses_sim_time(self)).lower()}"
         )
 
     def _complete_profile_update(self, params: list[Parameter]) -> list[Parameter]:
@@ -186,12 +194,30 @@ class BeltDrive(Node):
         return band_range_problem(profile, self.sample_rate, self.duration, self.band_velocity_limit)
 
     def _on_progress(self, msg: FlowProgress) -> None:
+        if msg.participant == self.gate.plant and int(msg.segment) > self._origin[0]:
+            self._origin = (int(msg.segment), self._segment_origin(msg))
         if not self.gate.report(msg.participant, int(msg.segment), int(msg.samples)):
             return
         if self.seen_at is None and self.gate.segment is not None:
             self.seen_at = time.monotonic()
             self.get_logger().info(f"plant seen: segment {self.gate.segment}")
         self._pump()
+
+    def _segment_origin(self, msg: FlowProgress) -> int:
+        """ROS time (ns) of t = 0 of the plant's segment: its stamp less the rig time it reports.
+
+        The plant stamps flow_progress with the time of its newest sample, (samples - 1) / rate
+        into the segment (0 before the first), on its clock that goes on across resets.
+        """
+        sec, nanosec = cdr.stamp_of(max(int(msg.samples) - 1, 0) / self.sample_rate)
+        stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+        return stamp - (sec * 1_000_000_000 + nanosec)
+
+    def _band_stamp(self, segment: int, k: int) -> tuple[int, int]:
+        """(sec, nanosec) of band sample k of `segment`: rig time k / rate on the rig's clock."""
+        sec, nanosec = cdr.stamp_of(k / self.sample_rate)
+        origin = self._origin[1] if self._origin[0] == segment else 0
+        return divmod(max(0, origin + sec * 1_000_000_000 + nanosec), 1_000_000_000)
 
     def _pump(self) -> None:
         """Sim flow control: publish band blocks up to the gate's limit, never beyond N."""
@@ -212,7 +238,7 @@ class BeltDrive(Node):
         while self.next_k <= limit:
             n = min(self.block_length, limit - self.next_k + 1)
             k = np.arange(self.next_k, self.next_k + n, dtype=float)
-            msg.header.stamp.sec, msg.header.stamp.nanosec = cdr.stamp_of(self.next_k / self.sample_rate)
+            msg.header.stamp.sec, msg.header.stamp.nanosec = self._band_stamp(segment, self.next_k)
             msg.first_sample_index = self.next_k - 1
             msg.band_velocity = _doubles(self._samples(k))
             self.publisher.publish(msg)

@@ -19,6 +19,7 @@ from typing import Any
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
@@ -271,6 +272,22 @@ def subscribed_by(node: Node, topics: Iterable[str], prefix: str) -> bool:
     )
 
 
+def steady_timer(node: Node, period: float, callback: Callable[[], None]) -> Any:
+    """A timer of `node` on the steady clock: it fires every `period` s of wall time in every mode.
+
+    The nodes' heartbeats, flow-control pumps, diagnostics and analysis updates use it, never the
+    node's ROS clock: with use_sim_time that clock stands still until /clock moves, and in a sim
+    rig /clock only moves once those timers have started the run (they announce the plant,
+    start belt_drive); with --no-clock it never moves at all.
+    """
+    return node.create_timer(period, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+
+def uses_sim_time(node: Node) -> bool:
+    """The node's standard use_sim_time parameter (its ROS clock follows /clock when true)."""
+    return bool(node.get_parameter("use_sim_time").value)
+
+
 def finite(value: float) -> bool:
     """True for a finite float."""
     return isinstance(value, float | int) and math.isfinite(value)
@@ -377,4 +394,6 @@ __all__ = [
     "describe",
     "diagnostic_status",
     "spin_node",
+    "steady_timer",
+    "uses_sim_time",
 ]

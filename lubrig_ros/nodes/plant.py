@@ -9,7 +9,8 @@ their rules live in app/plant_session.py (unit-tested without DDS):
   whatever the block length) and publishes one <ns>/state_block (RigStateBlock) per band block,
   then <ns>/flow_progress (FlowProgress: this node's fully qualified name, segment, samples
   published in the segment) that paces belt_drive (app/flow.py); with `publish_clock` also
-  /clock per block and as a 5 Hz heartbeat. Stamps are rig time.
+  /clock per block and as a 5 Hz heartbeat. Stamps (and /clock) are rig time, also its
+  /diagnostics; every timer runs on the steady clock, so the node runs with use_sim_time.
 * lockstep is sim for rig software that answers each state: the initial state at once, then one
   sample per band value, each as <ns>/state (RigState, rig-time stamp) and in state_block; a
   state not answered within the heartbeat period is published again (the answer to a repeated
@@ -22,7 +23,8 @@ their rules live in app/plant_session.py (unit-tested without DDS):
   which belt_drive follows to send band samples ahead. Falling behind real time: lag_policy.
 
 `scalar_topics` adds std_msgs/Float64 displacement, velocity and friction_coefficient per
-sample. A reset (<ns>/plant/reset) starts a new segment at t = 0 and reports it on flow_progress
+sample. A reset (<ns>/plant/reset) starts a new segment at t = 0 (stepped modes: its stamps and
+/clock go on from the old segment's end, never back) and reports it on flow_progress
 at once; <ns>/plant/pause pauses. Exit status 3 (EXIT_REAL_TIME_NOT_HELD) when a wall-clock run
 did not hold real time. Topics, QoS, parameters: app/contract.py.
 """
@@ -30,6 +32,7 @@ did not hold real time. Topics, QoS, parameters: app/contract.py.
 from __future__ import annotations
 
 import array
+import contextlib
 import functools
 import os
 import signal
@@ -40,6 +43,7 @@ import time
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -73,6 +77,8 @@ PROGRESS_PERIOD_S = 0.1
 AWAIT_PROGRESS_S = 5.0
 #: Exit status of a wall-clock plant that did not hold real time (lag_policy skip or stop).
 EXIT_REAL_TIME_NOT_HELD = contract.EXIT_REAL_TIME_NOT_HELD
+#: exit_when_complete: longest wait (s) for the readers of the outputs to acknowledge the last samples.
+ACK_WAIT_S = 1.0
 
 
 def _doubles(values: np.ndarray) -> array.array:
@@ -104,9 +110,21 @@ class Plant(Node):
         self.wait_for_subscriber = values["wait_for_subscriber"]
         self.scalar_topics = bool(values["scalar_topics"])
         self.publish_clock = bool(values["publish_clock"]) and self.mode == "sim"
+        self.exit_when_complete = bool(values["exit_when_complete"])
+        self._ending = False  # exit_when_complete: the run is over, the node is ending
         self.exit_status = 0
         if values["publish_clock"] and self.mode != "sim":
             self.get_logger().warning("publish_clock applies to sim mode only; no /clock published")
+        self.sim_time = common.uses_sim_time(self)
+        if self.sim_time and self.wall_clock:
+            self.get_logger().warning(
+                f"use_sim_time true in {self.mode} mode: the node clock follows /clock, which this "
+                "rig does not publish; its wall-clock stamps come from that clock (use it in sim only)"
+            )
+        # stepped modes: ROS time (ns) of the current segment's t = 0. Rig time restarts at 0 with
+        # every reset (sample_index, the profile); the stamps and /clock go on from where the old
+        # segment ended, so the ROS clock of a use_sim_time node never goes back (_on_reset).
+        self._origin_ns = 0
         settings = PlantSettings(
             values["mode"], values["band_velocity_limit"], values["stale_timeout"],
             values["tick_step_attempts"], values["lag_policy"], values["max_lag"],
@@ -146,8 +164,9 @@ class Plant(Node):
             config=config_from(base, self._config_values()),
             on_sample=self._publish_sample if per_sample else _nothing,
             on_block=self._publish_block,
-            on_complete=lambda done: self.pub_complete.publish(Bool(data=done)),
+            on_complete=self._on_complete,
             on_fault=self._on_fault,
+            on_failure=self._on_failure,
             log=self._log,
         )
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -164,7 +183,8 @@ class Plant(Node):
             service = create_service(self, name, callback)
             # every reset/pause is logged with its caller; rclpy does not tell the callback
             report_callers(self, service, functools.partial(self._log_caller, service.service_name))
-        self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
+        # steady clock, as the heartbeat: with use_sim_time the node clock stands until /clock moves
+        common.steady_timer(self, values["diagnostics_period"], self._publish_diagnostics)
         self._stop = threading.Event()
         self._log_problems = common.ProblemLog(self)  # warn/error statuses also to the log
         self._thread: threading.Thread | None = None
@@ -179,11 +199,12 @@ class Plant(Node):
                 f"beyond {1e3 * settings.max_lag:g} ms"
             )
         else:
-            self.create_timer(HEARTBEAT_S, self._heartbeat)
+            # the heartbeat announces the plant, which starts the run: it must not wait for /clock
+            common.steady_timer(self, HEARTBEAT_S, self._heartbeat)
             runs = f"{config.samples} samples per run"
         self.get_logger().info(
             f"plant: mode={self.mode}, {config.sample_rate:g} Hz, {config.rig.coupling_label}, "
-            f"friction law {law}, {runs}"
+            f"friction law {law}, {runs}, use_sim_time {str(self.sim_time).lower()}"
         )
 
     def _on_band_raw(self, data: bytes) -> None:
@@ -229,11 +250,13 @@ class Plant(Node):
             response.success, response.message = False, str(exc)
             return response
         with self.session.lock:
+            if not self.wall_clock:  # the new segment's t = 0 is one sample after the old one's last
+                self._origin_ns = self._stamp_ns(self.session.published * self.session.integrator.dt)
             self.session.reset(config)
             segment = self.session.segment
             self.pub_config.publish(String(data=config.to_yaml()))
             if self.wall_clock or self._announced:  # belt_drive restarts its profile for the new segment
-                self._publish_progress(self._now_s() if self.wall_clock else self.session.time)
+                self._publish_progress(self._now_s() if self.wall_clock else self._rig_now())
         self.get_logger().info(f"reset: rig time back to 0, segment {segment}")
         response.success = True
         response.message = f"rig reset to t = 0 and the initial state; segment {segment}"
@@ -265,26 +288,49 @@ class Plant(Node):
             if self.mode == "lockstep":
                 self.session.emit_initial()
         with self.session.lock:
-            self._publish_progress(self.session.time)
+            self._publish_progress(self._rig_now())
             if self.pub_clock is not None:
-                self._publish_clock(self.session.time)
+                self._publish_clock(self._rig_now())
             unanswered = time.monotonic() - self._state_sent >= HEARTBEAT_S
             lockstep = self.mode == "lockstep" and not self.session.complete
             if lockstep and self.pub_state is not None and unanswered:
                 self.pub_state.publish(self._state_msg)  # the answer may have been lost
                 self._state_sent = time.monotonic()
 
+    def _rig_now(self) -> float:
+        """Stepped modes: rig time of the newest sample published (0 before the first).
+
+        As its block has it, sample index x dt (the integrator's own clock sums dt and may lie a
+        nanosecond behind, which would put /clock back by one).
+        """
+        return max(self.session.published - 1, 0) * self.session.integrator.dt
+
+    def _stamp_ns(self, t: float) -> int:
+        """Stepped modes: the ROS time (ns) of rig time t of the current segment."""
+        sec, nanosec = cdr.stamp_of(t)
+        return self._origin_ns + sec * 1_000_000_000 + nanosec
+
+    def _stamp(self, t: float) -> tuple[int, int]:
+        """(sec, nanosec) of a stamp of time t (s).
+
+        Stepped modes: rig time t of the segment on the rig's ROS clock (equal to t until the
+        first reset); wall-clock modes: node-clock time t.
+        """
+        if self.wall_clock:
+            return cdr.stamp_of(t)
+        return divmod(self._stamp_ns(t), 1_000_000_000)
+
     def _publish_progress(self, t: float) -> None:
         """flow_progress: samples published in the segment; stamp t (rig time, or node time in s)."""
         msg = self._progress_msg
-        msg.header.stamp.sec, msg.header.stamp.nanosec = cdr.stamp_of(t)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = self._stamp(t)
         msg.segment = self.session.segment
         msg.samples = self.session.published
         self.pub_progress.publish(msg)
 
     def _publish_clock(self, t: float) -> None:
         clock = self._clock_msg
-        clock.clock.sec, clock.clock.nanosec = cdr.stamp_of(t)
+        clock.clock.sec, clock.clock.nanosec = self._stamp(t)
         if self.pub_clock is not None:
             self.pub_clock.publish(clock)
 
@@ -306,7 +352,7 @@ class Plant(Node):
         """One RigStateBlock, then flow_progress and /clock (called with the session lock)."""
         msg = self._block_msg
         first = self._block_start(block)
-        msg.header.stamp.sec, msg.header.stamp.nanosec = cdr.stamp_of(first)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = self._stamp(first)
         msg.sample_period = block.sample_period
         msg.first_sample_index = block.first_sample_index
         msg.segment = block.segment
@@ -324,6 +370,41 @@ class Plant(Node):
             self._publish_progress(first + (len(block) - 1) * block.sample_period)
         if self.pub_clock is not None:
             self._publish_clock(float(block.time[-1]))
+        last = block.first_sample_index + len(block) - 1
+        if self.exit_when_complete and self.wall_clock and last >= self.session.total:
+            duration = self.session.config.duration
+            self._end_of_run(f"{self.mode}: sample {self.session.total} published ({duration:g} s)")
+
+    def _on_complete(self, done: bool) -> None:
+        """run_complete (latched); stepped modes with exit_when_complete: the run is over."""
+        self.pub_complete.publish(Bool(data=done))
+        if done and self.exit_when_complete:
+            self._end_of_run(f"{self.mode}: run complete")
+
+    def _end_of_run(self, why: str) -> None:
+        """exit_when_complete: stop the loop, let the readers take the last samples, end (status 0)."""
+        if self._ending:
+            return
+        self._ending = True
+        self._stop.set()  # wall clock: the loop ends after this block (its last samples are flushed)
+        self.get_logger().info(f"{why}: the node ends (exit_when_complete)")
+        threading.Thread(target=self._exit_when_acked, name="end_of_run", daemon=True).start()
+
+    def _exit_when_acked(self) -> None:
+        if self._thread is not None:
+            self._thread.join(timeout=1.0)
+        # the outputs (flow_progress only paces the band source: over with the run). Their samples
+        # left at publish; the writers stay for a retransmit until the readers acknowledge them,
+        # which RTPS readers do in answer to a writer heartbeat (seen: often not within ACK_WAIT_S,
+        # so the node usually ends ACK_WAIT_S after the run). Polled without waiting: a waiting call
+        # keeps the GIL from the node's other threads for its whole timeout.
+        pending = [p for p in (self.pub_block, self.pub_complete, self.pub_state) if p is not None]
+        end = time.monotonic() + ACK_WAIT_S
+        with contextlib.suppress(Exception):  # a stop meanwhile: the context is gone
+            while pending and time.monotonic() < end:
+                pending = [p for p in pending if not p.wait_for_all_acked(Duration(seconds=0))]
+                time.sleep(0.01)
+        os.kill(os.getpid(), signal.SIGINT)  # the node ends as on a Ctrl-C (spin_node), status 0
 
     def _publish_sample(self, s: PlantSample) -> None:
         """One RigState per sample (wall-clock modes: node clock now; lockstep: rig time); scalars."""
@@ -338,7 +419,7 @@ class Plant(Node):
         if self.wall_clock:
             state.header.stamp = self.get_clock().now().to_msg()
         else:
-            state.header.stamp.sec, state.header.stamp.nanosec = cdr.stamp_of(s.time)
+            state.header.stamp.sec, state.header.stamp.nanosec = self._stamp(s.time)
         state.sample_index = s.sample_index
         state.segment = s.segment
         state.displacement, state.velocity = s.displacement, s.velocity
@@ -397,9 +478,27 @@ class Plant(Node):
         self._publish_diagnostics()
         os.kill(os.getpid(), signal.SIGINT)
 
+    def _on_failure(self, reason: str) -> None:
+        """A sample could not be integrated (the session logged it): a sim run ends, the rest waits.
+
+        Stepped modes: the run cannot complete; the node ends with EXIT_INTEGRATION_FAILED once
+        what was published is out. Wall-clock modes: no output until a reset (the timing status
+        is ERROR with the reason); the node stays up for it.
+        """
+        self._publish_diagnostics()
+        if not self.wall_clock:
+            self.exit_status = contract.EXIT_INTEGRATION_FAILED
+            self.get_logger().fatal(f"the run ends (exit status {self.exit_status}): {reason}")
+            # not from here (a callback, the session's lock held, the last samples not yet out):
+            # the readers take what was published, then the node ends as on a Ctrl-C
+            threading.Thread(target=self._exit_when_acked, name="end_of_run", daemon=True).start()
+
     def _publish_diagnostics(self) -> None:
         array = DiagnosticArray()
-        array.header.stamp = self.get_clock().now().to_msg()
+        if self.wall_clock:
+            array.header.stamp = self.get_clock().now().to_msg()
+        else:  # the rig's time, not the node clock (that is /clock's echo, or 0 with --no-clock)
+            array.header.stamp.sec, array.header.stamp.nanosec = self._stamp(self._rig_now())
         statuses = self.session.diagnostics()
         array.status = [common.diagnostic_status(s, self) for s in statuses]
         self.pub_diag.publish(array)

@@ -20,8 +20,11 @@ with --progress-heartbeat-only (`lubrig rig` in the wall-clock modes, where noth
 it) only on matching and as the heartbeat.
 
 Log times: receive time (system clock, ns); with --use-sim-time the rig time: the header stamp
-for stamped types, the /clock value for /clock, and for unstamped types the latest /clock value
-received before the message.
+of every message with a header, the /clock value for /clock (in a sim rig every stamp is rig
+time: the plant's samples, flow progress and diagnostics, the band blocks, the analysis outputs),
+and for unstamped types, or a stamp that is not rig time (beyond WALL_CLOCK_NS: a node on the
+wall clock), the latest /clock value received before the message. --use-sim-time also gives this
+process's ROS nodes (flow progress, workers) use_sim_time true, as every node of a sim rig has.
 
 Exit status: 0 after a clean stop (SIGINT/SIGTERM or --duration) with every stream complete,
 2 on bad arguments or an unwritable output, 1 if writing failed while recording (the bag is then
@@ -62,6 +65,7 @@ from lubrig_ros.app.contract import (
 )
 from lubrig_ros.app.contract import select_topics as _select_topics
 from lubrig_ros.app.fileio import write_text_atomic
+from lubrig_ros.app.lifetime import die_with_parent
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import ACCOUNTING_SIDECAR, cdr_string
 from lubrig_ros.bag.repair import repair_bag
@@ -70,6 +74,9 @@ from lubrig_ros.nodes.script import bounded_teardown, run_script
 
 BATCH_PERIOD_S = 0.02
 SIM_HOLD_NS = 300_000_000  # wait this long for /clock before stamping an unstamped message
+#: --use-sim-time: a header stamp at or beyond this (about 3 years) is wall-clock time, not rig time
+#: (a wall-clock stamp is about 1.8e9 s); such a message is placed by /clock instead.
+WALL_CLOCK_NS = 100_000_000 * 1_000_000_000
 #: The recorder's flow-control participant: <namespace>/lubrig_recorder (app/contract.py
 #: RECORDER_PARTICIPANT; `lubrig rig` puts it in belt_drive's required_consumers).
 RECORDER_NODE = RECORDER_PARTICIPANT
@@ -105,11 +112,23 @@ def reader_qos(qos: QoS) -> QoS:
 def _context() -> Any:
     """The multiprocessing context of the workers: a fork server that has imported what they need."""
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["rclpy", "rclpy.experimental", "lubrig_ros.nodes.interfaces", __name__])
+    ctx.set_forkserver_preload(
+        ["lubrig_ros.nodes.recorder_forkserver", "rclpy", "rclpy.experimental", "lubrig_ros.nodes.interfaces",
+         __name__]
+    )
     return ctx
 
 
-def _worker(wid: int, specs: list[Topic], first_index: int, out: Any, stop: Any) -> None:
+def _sim_time_overrides(use_sim_time: bool) -> list[Any]:
+    """parameter_overrides of this process's ROS nodes: use_sim_time as the recorder was asked."""
+    from rclpy.parameter import Parameter
+
+    return [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if use_sim_time else []
+
+
+def _worker(
+    wid: int, specs: list[Topic], first_index: int, out: Any, stop: Any, use_sim_time: bool = False
+) -> None:
     """Subscribe to specs (raw) and ship batches of (index, recv_ns, bytes) to out.
 
     Spun by rclpy's EventsExecutor with spin_once (its spin() fires no timer in this wheel and
@@ -118,6 +137,9 @@ def _worker(wid: int, specs: list[Topic], first_index: int, out: Any, stop: Any)
     messages every BATCH_PERIOD_S. Reports ("matched", wid, [index]) once a subscription has a
     publisher.
     """
+    # the fork server (this process's parent) ends with the recorder, however the recorder ends
+    # (it reads EOF on the recorder's end of its alive pipe); this worker is killed with it
+    die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent coordinates the stop
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     import rclpy
@@ -128,7 +150,9 @@ def _worker(wid: int, specs: list[Topic], first_index: int, out: Any, stop: Any)
 
     parent = os.getppid()
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node(f"{RECORDER_NODE}_w{wid}_{os.getpid()}")
+    node = rclpy.create_node(
+        f"{RECORDER_NODE}_w{wid}_{os.getpid()}", parameter_overrides=_sim_time_overrides(use_sim_time)
+    )
     batch: list[tuple[int, int, bytes]] = []
     urgent = [False]
     now = time.time_ns
@@ -246,15 +270,13 @@ class Recorder:
         config_spec = documented_topics(namespace)[resolve(namespace, "run_config")]
         if run_config is not None:  # the given configuration is written, not subscribed
             specs = [s for s in specs if s.name != config_spec.name]
-        # In sim mode the plant's samples (state, blocks), flow progress and /clock carry rig time
-        # in their stamps; other headers (diagnostics) may hold wall time, so they are placed by
-        # the /clock stream.
-        rig_stamped = {resolve(namespace, n) for n in
-                       ("state", "state_block", "band_velocity_block", "flow_progress")}
+        # In sim mode every header stamp is rig time (the plant's samples, flow progress and
+        # diagnostics, the band blocks, the analysis outputs with use_sim_time) and so is /clock;
+        # a stamp that is wall-clock time is placed by the /clock stream (_log_time).
         self.topics = [
             _Topic(
                 s,
-                has_leading_stamp(s.msgtype) and (s.name in rig_stamped or s.msgtype == CLOCK_TYPE),
+                has_leading_stamp(s.msgtype),
                 s.msgtype == CLOCK_TYPE,
                 StreamAccount(s.name) if s.msgtype in INDEXED_TYPES else None,
             )
@@ -303,7 +325,8 @@ class Recorder:
             self.index_map.extend(group)
             proc = ctx.Process(
                 target=_worker,
-                args=(wid, [self.topics[i].spec for i in group], first, self.queue, self.stop_event),
+                args=(wid, [self.topics[i].spec for i in group], first, self.queue, self.stop_event,
+                      self.use_sim_time),
                 daemon=True,
             )
             proc.start()
@@ -353,7 +376,7 @@ class Recorder:
                 stamp = None
             if topic.is_clock and stamp is not None:
                 self.clock.add(recv, stamp)
-            if stamp is not None:
+            if stamp is not None and (topic.is_clock or stamp < WALL_CLOCK_NS):
                 return stamp
         t = self.clock.lookup(recv, force)
         if t is None and force:
@@ -411,7 +434,8 @@ class Recorder:
         from lubrig_ros.nodes.interfaces import message_class, qos_profile
 
         rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
-        node = rclpy.create_node(RECORDER_NODE, namespace=self.namespace)
+        overrides = _sim_time_overrides(self.use_sim_time)
+        node = rclpy.create_node(RECORDER_NODE, namespace=self.namespace, parameter_overrides=overrides)
         spec = documented_topics(self.namespace)[self.progress_topic]
         self.progress_cls = message_class(spec.msgtype)
         self.progress_pub = node.create_publisher(

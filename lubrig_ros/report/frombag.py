@@ -8,9 +8,11 @@ Two layouts are read (docs/recording.md "Bag layouts"):
 - legacy (before issue 12): sensor_msgs/JointState on ``<ns>/state`` plus the Float64 topics
   ``<ns>/friction_coefficient`` and ``<ns>/band_velocity``.
 
-Time is rig time from 0 at the start of every segment: a sim plant stamps its samples with rig
-time; a realtime plant with the wall clock (its due times, about 1.8e9 s), whose rig time is
-due time − segment start = sample_index · sample_period (`rig_times`).
+Time is rig time: a sim plant stamps its samples with rig time on its clock, as on /clock (0 at
+the start; a reset starts a new segment, sample_index from 0, but the clock goes on, so a later
+segment's times start where the one before ended, as the recorder's log times and gap times do);
+a realtime plant with the wall clock (its due times, about 1.8e9 s), whose rig time is due time −
+segment start = sample_index · sample_period, 0 at each segment's start (`rig_times`).
 
 `read_run` reads a bag once (one integrity check, one decoding pass) and gives everything the
 report needs: configuration, trajectory, the sample accounting and, for a realtime recording,
@@ -186,7 +188,8 @@ def trajectory_from_bag(
     (segment, sample_index), each sample once; time is rig time (rig_times: the header stamp
     in sim, due time − segment start in realtime), x, ẋ, μ, v_band and v_rel are the recorded
     fields. `segment`: the run segment to read
-    (default: the first one in the bag; a plant reset starts a new segment at rig time 0). A gap
+    (default: the first one in the bag; a plant reset starts a new segment, sample_index from 0,
+    its sim stamps going on from the old segment's end). A gap
     leaves its samples out (recording_summary names it).
 
     Legacy layout (JointState on <ns>/state): time is the header stamp, x / ẋ its position /
