@@ -88,7 +88,7 @@ def _executable(name: str) -> str:
     return found
 
 
-RECORDER_NODE_PREFIX = "lubrig_recorder"  # the recorder's worker nodes: lubrig_recorder_w<i>_<pid>
+RECORDER_NODE_PREFIX = "lubrig_recorder"  # the recorder's worker nodes: <namespace>/lubrig_recorder_w<i>
 
 
 def recorder_reports_progress() -> bool:

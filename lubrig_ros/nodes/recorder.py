@@ -127,7 +127,13 @@ def _sim_time_overrides(use_sim_time: bool) -> list[Any]:
 
 
 def _worker(
-    wid: int, specs: list[Topic], first_index: int, out: Any, stop: Any, use_sim_time: bool = False
+    wid: int,
+    specs: list[Topic],
+    first_index: int,
+    out: Any,
+    stop: Any,
+    use_sim_time: bool = False,
+    namespace: str = DEFAULT_NAMESPACE,
 ) -> None:
     """Subscribe to specs (raw) and ship batches of (index, recv_ns, bytes) to out.
 
@@ -151,7 +157,7 @@ def _worker(
     parent = os.getppid()
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node(
-        f"{RECORDER_NODE}_w{wid}_{os.getpid()}", parameter_overrides=_sim_time_overrides(use_sim_time)
+        f"{RECORDER_NODE}_w{wid}", namespace=namespace, parameter_overrides=_sim_time_overrides(use_sim_time)
     )
     batch: list[tuple[int, int, bytes]] = []
     urgent = [False]
@@ -326,7 +332,7 @@ class Recorder:
             proc = ctx.Process(
                 target=_worker,
                 args=(wid, [self.topics[i].spec for i in group], first, self.queue, self.stop_event,
-                      self.use_sim_time),
+                      self.use_sim_time, self.namespace),
                 daemon=True,
             )
             proc.start()
@@ -464,6 +470,13 @@ class Recorder:
             else:  # what is taken now (with progress per block: the same value again)
                 segment = account.newest_segment
                 self.report_progress(segment, account.taken(segment))
+
+    def error(self, text: str) -> None:
+        """An error line: on stderr (`recorder: error: ...`) and, once the node is up, on /rosout."""
+        print(f"recorder: error: {text}", file=sys.stderr, flush=True)
+        if self.progress_node is not None:
+            with contextlib.suppress(Exception):  # a context already shut down: stderr has it
+                self.progress_node.get_logger().error(text)  # type: ignore[attr-defined]
 
     def stop_progress(self) -> None:
         """Destroy the progress node (and rclpy's context of this process)."""
@@ -709,13 +722,13 @@ def run(args: argparse.Namespace) -> int:
             print("recorder: stop requested while the workers were starting", flush=True)
         recorder.run(should_stop, args.duration)
     except BagError as exc:
-        print(f"recorder: error: {exc}; recording stopped", file=sys.stderr, flush=True)
+        recorder.error(f"{exc}; recording stopped")
         status = 1
     finally:
         try:
             recorder.shutdown()
         except BagError as exc:
-            print(f"recorder: error: {exc}", file=sys.stderr, flush=True)
+            recorder.error(str(exc))
             status = 1
     counts = ", ".join(f"{k}={v}" for k, v in recorder.writer.counts.items() if v)
     print(f"recorder: stopped; bag {output}: {counts}", flush=True)
@@ -732,7 +745,7 @@ def run(args: argparse.Namespace) -> int:
         recorder.write_accounting()
     problems = recorder.problems()
     for line in problems:
-        print(f"recorder: error: incomplete recording: {line}", file=sys.stderr, flush=True)
+        recorder.error(f"incomplete recording: {line}")
     status = 1 if problems else status
     # last, once the bag is final and the verdict printed: a hung teardown cannot cost either
     with bounded_teardown("recorder", lambda: status):
