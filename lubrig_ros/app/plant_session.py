@@ -66,8 +66,8 @@ app/plant_wallclock.py: realtime, rig_in_loop); the statuses are app/plant_diagn
 
 from __future__ import annotations
 
+import functools
 import math
-import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -89,7 +89,7 @@ from .plant_config import (
 from .plant_diagnostics import STALL_S, diagnostics
 from .plant_modes import LockstepRules, ModeRules, SteppedRules
 from .plant_output import BeltTravel, PlantBlock, PlantSample
-from .plant_state import PlantSettings, PlantState, nothing
+from .plant_state import PlantSettings, PlantState
 from .plant_wallclock import IndexedRules, WallClockRules
 
 __all__ = [
@@ -120,33 +120,10 @@ MODE_RULES: dict[str, Callable[[PlantState], ModeRules]] = {
 class PlantSession(PlantState):
     """The plant's rules over its state (see the module docstring)."""
 
-    def __init__(
-        self,
-        base: RunConfig,
-        settings: PlantSettings | None = None,
-        *,
-        on_sample: Callable[[PlantSample], None] = nothing,
-        on_block: Callable[[PlantBlock], None] = nothing,
-        on_complete: Callable[[bool], None] = nothing,
-        on_fault: Callable[[str], None] = nothing,
-        on_failure: Callable[[str], None] = nothing,
-        log: Callable[[str, str], None] = nothing,
-        clock: Callable[[], float] = time.monotonic,
-        config: RunConfig | None = None,
-    ) -> None:
-        super().__init__(
-            base,
-            settings,
-            on_sample=on_sample,
-            on_block=on_block,
-            on_complete=on_complete,
-            on_fault=on_fault,
-            on_failure=on_failure,
-            log=log,
-            clock=clock,
-            config=config,
-        )
-        self.rules: ModeRules = MODE_RULES[self.mode](self)
+    @functools.cached_property
+    def rules(self) -> ModeRules:
+        """The rules of this session's mode (MODE_RULES), made at first use."""
+        return MODE_RULES[self.mode](self)
 
     @property
     def stepped(self) -> bool:
