@@ -437,7 +437,8 @@ DEFAULT_REALTIME_PRIORITY = 50
 REALTIME_PRIORITY = _p(
     "realtime_priority", "integer", DEFAULT_REALTIME_PRIORITY,
     "realtime, rig_in_loop: SCHED_FIFO priority 1..99 of the plant's loop thread alone (where "
-    "the process may; otherwise a warning and normal scheduling); 0 keeps normal scheduling",
+    "the process may; otherwise a warning and normal scheduling), and a CPU wake-up latency "
+    "request of 0 (/dev/cpu_dma_latency, where writable); 0 keeps normal scheduling",
     low=0, high=99,
 )
 #: Band samples per BandVelocityBlock (sim); measured: docs/nodes.md "Block length".

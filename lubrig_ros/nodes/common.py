@@ -12,6 +12,7 @@ import gc
 import math
 import os
 import signal
+import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
@@ -257,8 +258,39 @@ def enter_realtime(priority: int, node: Node) -> bool:
             "with normal scheduling (grant CAP_SYS_NICE or an rtprio limit, or set realtime_priority:=0)"
         )
         return False
-    node.get_logger().info(f"realtime_priority={priority}: loop thread under SCHED_FIFO")
+    held = hold_cpu_wakeup_latency()
+    node.get_logger().info(
+        f"realtime_priority={priority}: loop thread under SCHED_FIFO; "
+        + ("CPU wake-up latency 0 requested (/dev/cpu_dma_latency)" if held else
+           "no CPU wake-up latency request (/dev/cpu_dma_latency not writable)")
+    )
     gc.freeze()  # objects made so far are never scanned again: shorter collector pauses
+    return True
+
+
+_LATENCY_REQUEST: list[int] = []  # the open /dev/cpu_dma_latency descriptor (held for the process)
+
+
+def hold_cpu_wakeup_latency() -> bool:
+    """Ask the kernel for a CPU wake-up latency of 0 µs while this process lives; True if held.
+
+    The PM QoS request real-time tools make (rt-tests' cyclictest): idle CPUs stay out of deep idle
+    states, so a sleeping loop wakes on time. On this project's VMs a quiet machine's idle vCPUs
+    otherwise wake the 1 kHz loop late more often than a loaded one's (docs/benchmarks.md). The
+    request lasts as long as the descriptor is open (until the process ends).
+    """
+    if _LATENCY_REQUEST:
+        return True
+    try:
+        fd = os.open("/dev/cpu_dma_latency", os.O_WRONLY)
+    except OSError:
+        return False
+    try:
+        os.write(fd, (0).to_bytes(4, sys.byteorder))
+    except OSError:
+        os.close(fd)
+        return False
+    _LATENCY_REQUEST.append(fd)
     return True
 
 
