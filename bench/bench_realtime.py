@@ -29,6 +29,12 @@ arrive here; it closes at the first timing status after --duration s. Over the w
   sample_index span of the window less the samples the plant declared skipped), the share of
   consecutive samples (index k and k + 1 both received) whose stamps are more than 1.5 ms apart
   and the worst such gap;
+- the machine's floor in the same window (lubrig_testkit.wakeup, run beside the rig one SCHED_FIFO
+  priority below the plant's loop): how often a bare 1 kHz loop that only sleeps to absolute
+  deadlines woke more than one period late, and the host's steal time (the hypervisor running
+  other guests on this VM's vCPUs); the plant cannot miss fewer deadlines than this loop does;
+- the machine's speed before the run (a fixed pure-Python loop, best of 3): CPU seconds of the
+  same work grow when the host is slower, so CPU figures of different days compare in proportion;
 - CPU seconds per wall second (user + system, psutil) of each node process, found as descendants
   of the launcher by their command lines; the recorder's fork server and workers count under
   "recorder"; and their total. The launcher and this process are shown apart (not in the total).
@@ -46,6 +52,7 @@ import argparse
 import contextlib
 import ctypes
 import functools
+import json
 import math
 import os
 import shutil
@@ -575,6 +582,8 @@ class RunResult:
     cpu_count: dict[str, int] = field(default_factory=dict)
     vanished: int = 0
     own_cpu: float = math.nan
+    floor: dict[str, Any] | None = None  # lubrig_testkit.wakeup over the window
+    speed_s: float = math.nan  # python_speed() before the run
     launcher_status: int | None = None
     error: str = ""
 
@@ -613,9 +622,49 @@ def next_timing(sub: Subscriber, rig: Rig, timeout: float, what: str) -> dict[st
     return sub.timing[-1][1]
 
 
+def python_speed(iterations: int = 2_000_000) -> float:
+    """Seconds this machine takes now for a fixed pure-Python loop (best of 3).
+
+    CPU figures are CPU seconds of work; the same work costs more CPU seconds when the host is
+    slower (other guests on the same cores, their caches). Printed with each run so that CPU
+    figures of different runs or days can be compared in proportion.
+    """
+    best = math.inf
+    for _ in range(3):
+        t0, total = time.perf_counter(), 0
+        for i in range(iterations):
+            total += i
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def start_floor(seconds: float) -> subprocess.Popen[str]:
+    """The bare 1 kHz loop of lubrig_testkit.wakeup for `seconds`, one priority below the plant's."""
+    priority = max(0, contract.DEFAULT_REALTIME_PRIORITY - 1)
+    return subprocess.Popen(
+        [sys.executable, "-m", "lubrig_testkit.wakeup", f"{seconds:g}", "--priority", str(priority)],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+
+
+def finish_floor(proc: subprocess.Popen[str]) -> dict[str, Any] | None:
+    """The floor loop's figures (None if it failed)."""
+    try:
+        out, _ = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        return None
+    with contextlib.suppress(ValueError):
+        data: dict[str, Any] = json.loads(out.strip().splitlines()[-1])
+        return data
+    return None
+
+
 def run_once(args: argparse.Namespace, run_dir: Path) -> RunResult:
     """One rig run with its steady window; the rig is stopped whatever happens."""
-    result = RunResult(hogs=args.hogs, load_start=load_average())
+    result = RunResult(hogs=args.hogs, load_start=load_average(), speed_s=python_speed())
     lease = DomainLease()
     rig: Rig | None = None
     sub: Subscriber | None = None
@@ -632,6 +681,7 @@ def run_once(args: argparse.Namespace, run_dir: Path) -> RunResult:
         wait(lambda: s.analysis_seen, args.startup_timeout, r, "a status of the analysis")
         result.first = next_timing(s, r, 10.0, "the plant's timing status")
         cpu0, own0 = cpu_snapshot(r), sum(me.cpu_times()[:2])
+        floor = start_floor(args.duration)
         s.open_window()
         result.startup_s = cpu0.wall - start
         end = cpu0.wall + args.duration
@@ -653,6 +703,7 @@ def run_once(args: argparse.Namespace, run_dir: Path) -> RunResult:
             result.states.skipped, result.states.skipped_from = round(skipped), "the plant's status"
         result.cpu, result.cpu_count, result.vanished = cpu_per_role(cpu0, cpu1)
         result.own_cpu = (own1 - own0) / result.window_s
+        result.floor = finish_floor(floor)
     except RuntimeError as exc:
         result.error = str(exc) + ("\n" + rig.log_tails() if rig is not None else "")
     finally:
@@ -673,6 +724,7 @@ def print_run(k: int, repeat: int, args: argparse.Namespace, res: RunResult) -> 
     label = {0: "quiet", 1: "one hog"}.get(res.hogs, "two hogs" if res.hogs == 2 else f"{res.hogs} hogs")
     print(f"run {k}/{repeat}: realtime 1 kHz, case {args.case}, rig with recording, {hogs}")
     print(f"  load average (1/5/15 min) at start {res.load_start}, at end {res.load_end}")
+    print(f"  machine speed: a 2,000,000-iteration Python loop took {1e3 * res.speed_s:.0f} ms (best of 3)")
     if res.error:
         print(f"  run failed: {res.error}")
         print(f"  launcher exit status {res.launcher_status}")
@@ -686,6 +738,7 @@ def print_run(k: int, repeat: int, args: argparse.Namespace, res: RunResult) -> 
         f"  deadline misses in the window: {fmt(misses, digits=0)} of {fmt(ticks, digits=0)} ticks"
         f" = {fmt(share, 100, 3, '%')}   target < {target:g} % ({label}): {verdict(ok)}"
     )
+    print(f"  {floor_text(res.floor)}")
     samples, total = number(res.last, "samples"), number(res.last, "deadline_misses")
     whole = None if not samples or total is None else total / samples
     print(
@@ -762,11 +815,27 @@ def print_run(k: int, repeat: int, args: argparse.Namespace, res: RunResult) -> 
     print(f"  rig stopped (SIGINT to the launcher): exit status {res.launcher_status}")
 
 
+def floor_text(floor: dict[str, Any] | None) -> str:
+    """One line: the bare loop's late wake-ups and the host's steal time in the window."""
+    if floor is None:
+        return "machine floor: not measured (lubrig_testkit.wakeup failed)"
+    late, ticks = floor["late"], floor["ticks"]
+    steal = floor.get("steal_share")
+    how = ("SCHED_FIFO" if floor["fifo"] else "normal scheduling") + (
+        ", latency request" if floor["latency_request"] else ""
+    )
+    return (
+        f"machine floor in the window: a bare 1 kHz loop ({how}) woke > 1 period late {late} of {ticks}"
+        f" = {100 * late / ticks:.3f} %, worst {1e3 * floor['worst_s']:.2f} ms;"
+        f" host steal {fmt(steal, 100, 3, '%')} of CPU time"
+    )
+
+
 def print_summary(results: list[RunResult]) -> None:
     """One line per run: the headline figures."""
     print(
         "summary (window misses %, end lag ms: plant / subscriber (due time), received %, gaps %,"
-        " CPU cores of the four nodes):"
+        " CPU cores of the four nodes, the bare loop's late wake-ups %):"
     )
     for k, res in enumerate(results, 1):
         if res.error:
@@ -778,8 +847,14 @@ def print_summary(results: list[RunResult]) -> None:
         print(
             f"  run {k}: misses {fmt(res.miss_share, 100, 3)}  lag {fmt(number(res.last, 'lag_s'), 1e3, 2)}"
             f" / {fmt(res.probe_due_lag_s, 1e3, 2)}  received {received}  gaps {gaps}"
-            f"  CPU {res.total_cpu:.3f}  load {res.load_start} -> {res.load_end}"
+            f"  CPU {res.total_cpu:.3f}  floor {floor_share(res.floor)}"
+            f"  load {res.load_start} -> {res.load_end}"
         )
+
+
+def floor_share(floor: dict[str, Any] | None) -> str:
+    """The bare loop's late share in percent (n/a if not measured)."""
+    return "n/a" if floor is None else f"{100 * floor['late'] / floor['ticks']:.3f}"
 
 
 def rig_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,0 +1,320 @@
+"""A recording session: batches of received messages (stream, receive time, CDR bytes) → one bag.
+
+ROS-free and process-free: the recorder node (nodes/recorder.py) feeds it what its subscriber
+processes (nodes/recorder_workers.py) received and publishes the flow progress it reports; this
+module decides everything else.
+
+- **Log time** of each message: its receive time (system clock, ns), or with ``use_sim_time`` the
+  rig time: the header stamp of every stamped message, the /clock value for /clock, and for an
+  unstamped message, or a stamp that is not rig time (at or beyond `WALL_CLOCK_NS`: a node on the
+  wall clock), the latest /clock value received before it. Such a message waits (`SIM_HOLD_NS` at
+  most) for the /clock that places it.
+- **Accounting** (app/accounting.py): every message of an indexed type (RigState, RigStateBlock,
+  BandVelocityBlock) written is counted per stream from its sample index and segment; the plant's
+  FlowProgress announces what it published, so samples not yet taken are known (`behind`).
+- **Flow progress**: after every state_block written (or, with ``progress_per_block`` false, only
+  as the heartbeat) the samples of its segment taken in order go to the ``on_progress`` sink.
+- **The run configuration** given to the recorder is written first, at the first log time.
+"""
+
+from __future__ import annotations
+
+import bisect
+import contextlib
+import json
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from lubrig_ros.app.accounting import StreamAccount
+from lubrig_ros.app.cdr import INDEXED_TYPES, leading_stamp_ns, sample_span
+from lubrig_ros.app.contract import DEFAULT_NAMESPACE, Topic, documented_topics, resolve
+from lubrig_ros.app.fileio import write_text_atomic
+from lubrig_ros.bag.errors import BagError
+from lubrig_ros.bag.layout import ACCOUNTING_SIDECAR, cdr_string
+from lubrig_ros.bag.repair import repair_bag
+from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, serialize_string, typestore
+
+#: With use_sim_time, an unstamped message waits at most this long (receive time) for /clock.
+SIM_HOLD_NS = 300_000_000
+#: A header stamp at or beyond this (about 3 years) is wall-clock time, not rig time (a wall-clock
+#: stamp is about 1.8e9 s); such a message is placed by /clock instead.
+WALL_CLOCK_NS = 100_000_000 * 1_000_000_000
+#: The flow-progress heartbeat: the latest value again after this long without a report (s).
+HEARTBEAT_S = 0.2
+CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
+
+#: One received message: (index of its stream in `RecordingSession.streams`, receive time ns, CDR).
+Received = tuple[int, int, bytes]
+#: Where flow progress goes: (segment, samples taken in order, rig time of the newest sample ns).
+ProgressSink = Callable[[int, int, int], None]
+
+
+@dataclass
+class RecordedStream:
+    """One recorded topic and how its messages are placed and counted."""
+
+    spec: Topic
+    stamped: bool  # its type starts with a std_msgs/Header
+    is_clock: bool
+    account: StreamAccount | None = None  # streams with sample indices (INDEXED_TYPES)
+
+
+class SimClock:
+    """Maps receive times to rig time from the stream of /clock messages."""
+
+    KEEP = 20_000  # newest /clock values kept (half are dropped when full)
+
+    def __init__(self) -> None:
+        self.recv: list[int] = []
+        self.sim: list[int] = []
+
+    def add(self, recv_ns: int, sim_ns: int) -> None:
+        """Record one /clock message."""
+        self.recv.append(recv_ns)
+        self.sim.append(sim_ns)
+        if len(self.recv) > self.KEEP:
+            del self.recv[: self.KEEP // 2], self.sim[: self.KEEP // 2]
+
+    def lookup(self, recv_ns: int, force: bool) -> int | None:
+        """Rig time at recv_ns, or None if /clock may still arrive for it (unless force)."""
+        if not self.recv or (recv_ns > self.recv[-1] and not force):
+            return None
+        i = bisect.bisect_right(self.recv, recv_ns) - 1
+        return self.sim[max(i, 0)]
+
+
+class RecordingSession:
+    """Writes received messages of `specs` into a new bag at `output` (see the module docstring)."""
+
+    def __init__(
+        self,
+        output: Path,
+        specs: Sequence[Topic],
+        run_config: str | None,
+        use_sim_time: bool,
+        namespace: str = DEFAULT_NAMESPACE,
+        flush_period: float = BagWriter.FLUSH_PERIOD_NS / 1e9,
+        flush_messages: int = BagWriter.FLUSH_MESSAGES,
+    ) -> None:
+        topics = documented_topics(namespace)
+        self.config_topic = topics[resolve(namespace, "run_config")]
+        if run_config is not None:  # the given configuration is written, not subscribed
+            specs = [s for s in specs if s.name != self.config_topic.name]
+        self.streams = [
+            RecordedStream(
+                s,
+                has_leading_stamp(s.msgtype),
+                s.msgtype == CLOCK_TYPE,
+                StreamAccount(s.name) if s.msgtype in INDEXED_TYPES else None,
+            )
+            for s in specs
+        ]
+        self.state_block = resolve(namespace, "state_block")
+        self.progress_topic = topics[resolve(namespace, "flow_progress")]
+        self.plant_node = resolve(namespace, "plant")  # its FlowProgress announces what it published
+        self.participant = ""  # this recorder's flow-control participant (set by the node)
+        self.use_sim_time = use_sim_time
+        self.run_config = run_config
+        self.config_written = False
+        self.clock = SimClock()
+        self.held: list[Received] = []
+        self.malformed: dict[str, int] = {}
+        self.on_progress: ProgressSink | None = None
+        self.progress_per_block = True  # False: on matching and as the heartbeat only
+        self.progress: tuple[int, int] | None = None  # (segment, samples) last reported
+        self.last_progress = 0.0
+        self.writer = BagWriter(output, run_config, round(flush_period * 1e9), flush_messages)
+        if run_config is not None:
+            self.writer.add_topic(self.config_topic.name, self.config_topic.msgtype, 1, True)
+        for s in self.streams:
+            self.writer.add_topic(s.spec.name, s.spec.msgtype, s.spec.depth, s.spec.latched)
+
+    # ------------------------------------------------------------------ input
+    def handle(self, batch: Sequence[Received], force: bool = False) -> None:
+        """Write a batch (with use_sim_time: /clock first, unplaced messages held unless force)."""
+        if not self.use_sim_time:
+            for idx, recv, data in batch:
+                self._write(self.streams[idx], recv, data)
+            return
+        for idx, recv, data in batch:  # /clock first, so that unstamped messages can be placed
+            stream = self.streams[idx]
+            if stream.is_clock:
+                t = self._log_time(stream, recv, data, True)
+                self._write(stream, recv if t is None else t, data)  # t = 0 is a valid rig time
+        pending = self.held + [m for m in batch if not self.streams[m[0]].is_clock]
+        self.held = []
+        now = time.time_ns()
+        for idx, recv, data in pending:
+            stream = self.streams[idx]
+            t = self._log_time(stream, recv, data, force or now - recv > SIM_HOLD_NS)
+            if t is None:
+                self.held.append((idx, recv, data))
+            else:
+                self._write(stream, t, data)
+
+    def matched(self, streams: Sequence[int]) -> None:
+        """These streams' subscriptions have a publisher: once state_block has, report (0, 0)."""
+        names = {self.streams[i].spec.name for i in streams}
+        if self.state_block in names and self.progress is None:
+            self.report_progress(0, 0)  # subscribed and matched: belt_drive may start
+
+    def start(self) -> None:
+        """Without use_sim_time the run configuration is written now (receive-time log times)."""
+        if self.run_config is not None and not self.use_sim_time:
+            self._write_config(time.time_ns())
+            self.writer.flush()
+
+    def _log_time(self, stream: RecordedStream, recv: int, data: bytes, force: bool) -> int | None:
+        if not self.use_sim_time:
+            return recv
+        if stream.stamped:
+            try:
+                stamp: int | None = leading_stamp_ns(data)
+            except ValueError:
+                stamp = None
+            if stream.is_clock and stamp is not None:
+                self.clock.add(recv, stamp)
+            if stamp is not None and (stream.is_clock or stamp < WALL_CLOCK_NS):
+                return stamp
+        t = self.clock.lookup(recv, force)
+        if t is None and force:
+            return 0  # before the first /clock the rig is at t = 0 (e.g. the latched run_config)
+        return t
+
+    def _write(self, stream: RecordedStream, t: int, data: bytes) -> None:
+        if not self.config_written and self.run_config is not None:
+            self._write_config(t)
+        if stream.spec.name == self.config_topic.name:  # published by the launcher: keep it
+            text = cdr_string(data)
+            if text is not None:
+                self.writer.set_run_config(text)
+        self.writer.write(stream.spec.name, stream.spec.msgtype, t, data)
+        if stream.account is not None:
+            self._account(stream, data)
+        elif stream.spec.name == self.progress_topic.name:
+            self._announced(data)
+
+    def _write_config(self, t: int) -> None:
+        assert self.run_config is not None
+        spec = self.config_topic
+        self.writer.write(spec.name, spec.msgtype, t, serialize_string(self.run_config))
+        self.config_written = True
+
+    def _count_malformed(self, name: str) -> None:
+        self.malformed[name] = self.malformed.get(name, 0) + 1
+
+    def _account(self, stream: RecordedStream, data: bytes) -> None:
+        """Count the written message's samples; after a state_block, report flow progress."""
+        assert stream.account is not None
+        try:
+            span = sample_span(stream.spec.msgtype, data)
+        except ValueError:
+            self._count_malformed(stream.spec.name)
+            return
+        stream.account.add(
+            span.segment, span.first_index, span.count, span.stamp_ns, span.period_ns, span.skipped
+        )
+        if stream.spec.name == self.state_block and self.progress_per_block:
+            self.report_progress(span.segment, stream.account.taken(span.segment))
+
+    def _announced(self, data: bytes) -> None:
+        """A FlowProgress of the plant: the samples it has published (the state_block stream's tail)."""
+        account = self._state_account()
+        if account is None:
+            return
+        try:
+            msg: Any = typestore().deserialize_cdr(data, self.progress_topic.msgtype)
+        except Exception:  # a malformed message is counted, never fatal
+            self._count_malformed(self.progress_topic.name)
+            return
+        if msg.participant == self.plant_node:
+            account.announce(int(msg.segment), int(msg.samples))
+
+    # ------------------------------------------------------------------ flow progress
+    def _state_account(self) -> StreamAccount | None:
+        return next((s.account for s in self.streams if s.spec.name == self.state_block), None)
+
+    @property
+    def records_state_block(self) -> bool:
+        """True if the state_block stream is recorded (only then is flow progress reported)."""
+        return any(s.spec.name == self.state_block for s in self.streams)
+
+    def report_progress(self, segment: int, samples: int) -> None:
+        """Report (segment, samples) to the progress sink (none yet: nothing is reported)."""
+        if self.on_progress is None:
+            return
+        self.progress = (segment, samples)
+        self.on_progress(segment, samples, self.newest_rig_ns)
+        self.last_progress = time.monotonic()
+
+    def heartbeat(self) -> None:
+        """Report again after HEARTBEAT_S without a report: what is taken now."""
+        if self.progress is None or time.monotonic() - self.last_progress < HEARTBEAT_S:
+            return
+        account = self._state_account()
+        if account is None or account.newest_segment < 0:
+            self.report_progress(*self.progress)
+        else:  # with progress per block: the same value again
+            segment = account.newest_segment
+            self.report_progress(segment, account.taken(segment))
+
+    @property
+    def newest_rig_ns(self) -> int:
+        """Rig time of the newest state_block sample written (0 before the first)."""
+        account = self._state_account()
+        seg = None if account is None else account.segments.get(account.newest_segment)
+        return 0 if seg is None or seg.last_time_ns is None else seg.last_time_ns  # announced only: 0
+
+    # ------------------------------------------------------------------ results
+    @property
+    def accounts(self) -> dict[str, StreamAccount]:
+        """The accounts of the recorded sample streams, by topic (those that got messages)."""
+        return {s.spec.name: s.account for s in self.streams if s.account is not None and s.account.messages}
+
+    def behind(self) -> int:
+        """Samples the plant announced that are not written yet."""
+        return sum(a.behind() for a in self.accounts.values())
+
+    def problems(self) -> list[str]:
+        """One line per problem of every stream (gap, duplicate, out of order, malformed)."""
+        lines = [line for a in self.accounts.values() for line in a.problems()]
+        lines += [
+            f"{name}: {n} malformed messages (no sample index read)" for name, n in self.malformed.items()
+        ]
+        return lines
+
+    def write_accounting(self) -> Path:
+        """<bag>/accounting.json: per-stream accounts and the problems (written atomically)."""
+        path = self.writer.path / ACCOUNTING_SIDECAR
+        problems = self.problems()
+        data = {
+            "participant": self.participant,
+            "streams": {name: a.summary() for name, a in self.accounts.items()},
+            "malformed": self.malformed,
+            "problems": problems,
+            "complete": not problems,
+        }
+        write_text_atomic(path, json.dumps(data, indent=2) + "\n")
+        return path
+
+    def flush_if_due(self, interval_s: float) -> None:
+        """Flush to the disk (fsync) if the last flush is older than interval_s of wall time."""
+        if time.monotonic() - self.writer.last_flush > interval_s:
+            self.writer.flush()
+
+    def close(self) -> None:
+        """Finalize the bag; after a write failure, repair it.
+
+        BagWriter.close only closes a failed bag; the repair (what was flushed, finalized) is run
+        here explicitly. If it fails too (e.g. the disk is still full) the bag stays unfinalized
+        and `lubrig bag repair DIR` can retry.
+        """
+        try:
+            self.writer.close()
+        finally:
+            if self.writer.failed:
+                with contextlib.suppress(BagError, OSError):
+                    repair_bag(self.writer.path, backup=False)

@@ -1,0 +1,181 @@
+"""bag/recording.py: the recorder's ROS-free session, fed serialized messages as its workers ship them.
+
+Messages are serialized by rclpy (the real interface package), the bag is read back by rosbags and
+mcap + mcap_ros2 (lubrig_testkit.crosscheck), never by the project's reader.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import pytest
+from builtin_interfaces.msg import Time
+from lubrig_testkit.crosscheck import read_mcap, read_rosbags
+from rclpy.serialization import serialize_message
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64
+
+from lubrig_interfaces.msg import FlowProgress, RigStateBlock
+from lubrig_ros.app.contract import resolve, select_topics
+from lubrig_ros.bag.recording import SIM_HOLD_NS, WALL_CLOCK_NS, RecordingSession
+
+NS = "/lubrig"
+MS = 1_000_000
+CONFIG = "case: 1\nduration: 1.0\n"
+
+
+def _stamp(ns: int) -> Time:
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _block(first: int, n: int, segment: int = 0, t0_ns: int | None = None) -> bytes:
+    msg = RigStateBlock()
+    msg.header.stamp = _stamp(first * MS if t0_ns is None else t0_ns)
+    msg.sample_period = 1e-3
+    msg.first_sample_index = first
+    msg.segment = segment
+    values = [float(first + i) for i in range(n)]
+    for field in (
+        "displacement",
+        "velocity",
+        "friction_coefficient",
+        "friction_force",
+        "band_velocity",
+        "relative_velocity",
+        "belt_travel",
+    ):
+        setattr(msg, field, values)
+    return serialize_message(msg)
+
+
+def _clock(ns: int) -> bytes:
+    return serialize_message(Clock(clock=_stamp(ns)))
+
+
+def _session(
+    tmp_path: Path, names: list[str], sim: bool, run_config: str | None = CONFIG
+) -> RecordingSession:
+    return RecordingSession(tmp_path / "bag", select_topics(NS, names), run_config, sim, NS)
+
+
+def _index(session: RecordingSession, name: str) -> int:
+    return next(i for i, s in enumerate(session.streams) if s.spec.name == resolve(NS, name))
+
+
+def test_blocks_are_written_counted_and_reported_as_flow_progress(tmp_path: Path) -> None:
+    session = _session(tmp_path, ["state_block"], sim=False)
+    reports: list[tuple[int, int, int]] = []
+    session.on_progress = lambda seg, n, t: reports.append((seg, n, t))
+    k = _index(session, "state_block")
+    session.start()
+    session.matched([k])
+    assert reports == [(0, 0, 0)]  # subscribed and matched: the sim belt may start
+    session.handle([(k, 1, _block(0, 250)), (k, 2, _block(250, 250))])
+    assert reports[1:] == [(0, 250, 249 * MS), (0, 500, 499 * MS)]
+    session.close()
+    assert session.problems() == []
+    values = read_rosbags(session.writer.path)
+    assert values[resolve(NS, "state_block")] == [float(i) for i in range(500)]
+    assert read_mcap(session.writer.path) == values
+    config_topic = resolve(NS, "run_config")
+    assert values[config_topic] == [CONFIG]  # written first, though never received
+
+
+def test_a_lost_block_is_a_gap_named_in_the_problems_and_accounting_json(tmp_path: Path) -> None:
+    session = _session(tmp_path, ["state_block"], sim=False)
+    reports: list[tuple[int, int, int]] = []
+    session.on_progress = lambda seg, n, t: reports.append((seg, n, t))
+    k = _index(session, "state_block")
+    session.handle([(k, 1, _block(0, 100)), (k, 2, _block(200, 100))])
+    assert reports[-1][:2] == (0, 100)  # taken in order: the flow window does not pass the gap
+    (line,) = session.problems()
+    assert line.startswith(f"{resolve(NS, 'state_block')}: 100 samples missing in 1 gap(s)")
+    session.close()
+    data = json.loads(session.write_accounting().read_text())
+    assert data["complete"] is False and data["problems"] == [line]
+
+
+def test_a_malformed_message_is_counted_never_fatal(tmp_path: Path) -> None:
+    session = _session(tmp_path, ["state_block", "flow_progress"], sim=False, run_config=None)
+    k, p = _index(session, "state_block"), _index(session, "flow_progress")
+    session.handle([(k, 1, b"\x00\x01\x00\x00garbage"), (p, 2, b"\x00\x01"), (k, 3, _block(0, 10))])
+    session.close()
+    assert session.malformed == {resolve(NS, "state_block"): 1, resolve(NS, "flow_progress"): 1}
+    assert session.accounts[resolve(NS, "state_block")].samples == 10
+    assert any("1 malformed messages" in line for line in session.problems())
+
+
+def test_the_plant_s_flow_progress_announces_samples_not_yet_taken(tmp_path: Path) -> None:
+    session = _session(tmp_path, ["state_block", "flow_progress"], sim=False, run_config=None)
+    k, p = _index(session, "state_block"), _index(session, "flow_progress")
+    announce = FlowProgress(participant=resolve(NS, "plant"), segment=0, samples=300)
+    other = FlowProgress(participant=resolve(NS, "analysis"), segment=0, samples=900)
+    session.handle(
+        [(k, 1, _block(0, 100)), (p, 2, serialize_message(announce)), (p, 3, serialize_message(other))]
+    )
+    assert session.behind() == 200  # the plant's announcement counts, another participant's does not
+    session.handle([(k, 4, _block(100, 200))])
+    assert session.behind() == 0
+    session.close()
+
+
+def test_sim_time_places_unstamped_messages_by_clock_and_holds_them_until_it_arrives(tmp_path: Path) -> None:
+    session = _session(tmp_path, ["/clock", "state_block", "band_velocity"], sim=True)
+    c, k, v = (_index(session, n) for n in ("/clock", "state_block", "band_velocity"))
+    recv = time.time_ns()  # receive times: the system clock, far from rig time
+    session.handle([(c, recv, _clock(5 * MS)), (k, recv + 1, _block(5, 10))])
+    band = serialize_message(Float64(data=0.25))
+    session.handle([(v, recv + 2 * MS, band)])  # after the newest /clock: may still be placed by one
+    assert len(session.held) == 1
+    session.handle([(c, recv + 3 * MS, _clock(7 * MS))])  # /clock of 7 ms received after it
+    assert session.held == []
+    session.close()
+    times = _log_times(session.writer.path)
+    assert times["/clock"] == [5 * MS, 7 * MS]
+    assert times[resolve(NS, "state_block")] == [5 * MS]  # its header stamp, not its receive time
+    assert times[resolve(NS, "band_velocity")] == [5 * MS]  # the /clock received before it
+    assert times[resolve(NS, "run_config")] == [5 * MS]  # at the first log time of the run
+
+
+def test_sim_time_forced_after_the_hold_and_wall_clock_stamps_placed_by_clock(tmp_path: Path) -> None:
+    session = _session(tmp_path, ["/clock", "state_block", "band_velocity"], sim=True, run_config=None)
+    c, k, v = (_index(session, n) for n in ("/clock", "state_block", "band_velocity"))
+    now = time.time_ns()
+    session.handle([(c, now - 2 * SIM_HOLD_NS, _clock(3 * MS))])
+    session.handle([(v, now - SIM_HOLD_NS - MS, serialize_message(Float64(data=1.0)))])  # held too long
+    assert session.held == []
+    wall = WALL_CLOCK_NS + 123  # a node on the wall clock: not rig time
+    session.handle([(k, now - 2 * SIM_HOLD_NS + 1, _block(0, 5, t0_ns=wall))])
+    session.close()
+    times = _log_times(session.writer.path)
+    assert times[resolve(NS, "band_velocity")] == [3 * MS]
+    assert times[resolve(NS, "state_block")] == [3 * MS]
+
+
+def _log_times(bag: Path) -> dict[str, list[int]]:
+    from mcap.reader import make_reader
+
+    out: dict[str, list[int]] = {}
+    (mcap_file,) = bag.glob("*.mcap")
+    with mcap_file.open("rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages(log_time_order=True):
+            out.setdefault(channel.topic, []).append(message.log_time)
+    return out
+
+
+@pytest.mark.parametrize("per_block", [True, False])
+def test_heartbeat_reports_what_is_taken(tmp_path: Path, per_block: bool) -> None:
+    session = _session(tmp_path, ["state_block"], sim=False, run_config=None)
+    session.progress_per_block = per_block
+    reports: list[tuple[int, int, int]] = []
+    session.on_progress = lambda seg, n, t: reports.append((seg, n, t))
+    k = _index(session, "state_block")
+    session.matched([k])
+    session.handle([(k, 1, _block(0, 50))])
+    assert [r[:2] for r in reports] == ([(0, 0), (0, 50)] if per_block else [(0, 0)])
+    session.last_progress -= 1.0  # the heartbeat interval has passed
+    session.heartbeat()
+    assert reports[-1][:2] == (0, 50)
+    session.close()
