@@ -49,6 +49,7 @@ once figures were printed (1 only if no run produced any). Soak (memory): bench/
 from __future__ import annotations
 
 import argparse
+import bisect
 import contextlib
 import ctypes
 import functools
@@ -78,6 +79,7 @@ BIN = Path(sys.executable).parent
 ROLES = ("plant", "belt_drive", "analysis", "recorder")
 RIG_STATE = "lubrig_interfaces/msg/RigState"
 SAMPLE_RATE_HZ = 1000.0
+GAP_PERIOD_S = 1.0 / SAMPLE_RATE_HZ  # a sample later than this after its due time missed its deadline
 GAP_S = 1.5e-3  # consecutive state stamps further apart than this count as a gap
 STOP_GRACE_S = 90.0  # the launcher stops the nodes (10 s grace, +5 s), then the recorder (40 s, +5 s)
 # targets of issue 19 ("Real time that holds")
@@ -375,6 +377,7 @@ class Subscriber:
         self.segments: list[int] = []
         self.received_ns: list[int] = []
         self.block_lateness: list[float] = []  # the window's samples' lateness, from the blocks
+        self.late_due_ns: list[int] = []  # due times (system clock) of the window's late samples
         self.timing: list[tuple[float, dict[str, str]]] = []  # (monotonic arrival, values)
         self.analysis_seen = False
         self._stop = threading.Event()
@@ -413,6 +416,11 @@ class Subscriber:
         self.segment_start_ns[int(msg.segment)] = (round(start), period_ns)
         if self.window:
             self.block_lateness.extend(msg.lateness)
+            self.late_due_ns.extend(
+                round(stamp_ns + i * period_ns)
+                for i, v in enumerate(msg.lateness)
+                if v > 1.0 / SAMPLE_RATE_HZ
+            )
         if msg.skipped and self.skips is not None:
             first = int(msg.first_sample_index)
             self.skips.append((int(msg.segment), first - int(msg.skipped), first - 1))
@@ -429,6 +437,7 @@ class Subscriber:
         """Start recording the states of the window."""
         self.stamps, self.indices, self.segments, self.received_ns = [], [], [], []
         self.block_lateness = []
+        self.late_due_ns = []
         self.window = True
 
     def newest_due_lag_s(self, now_ns: int) -> float | None:
@@ -584,6 +593,8 @@ class RunResult:
     own_cpu: float = math.nan
     floor: dict[str, Any] | None = None  # lubrig_testkit.wakeup over the window
     speed_s: float = math.nan  # python_speed() before the run
+    plant_late: int = 0  # the window's samples later than one period (state blocks)
+    explained: int = 0  # ... of which due while the bare loop was late too
     launcher_status: int | None = None
     error: str = ""
 
@@ -620,6 +631,19 @@ def next_timing(sub: Subscriber, rig: Rig, timeout: float, what: str) -> dict[st
     seen = len(sub.timing)
     wait(lambda: len(sub.timing) > seen, timeout, rig, what)
     return sub.timing[-1][1]
+
+
+def explained_by_floor(late_due_ns: list[int], floor_late: list[list[int]]) -> int:
+    """How many late samples were due while the bare loop was late too (±1 period around its stall)."""
+    period = round(1e9 / SAMPLE_RATE_HZ)
+    spans = sorted((due - period, due + late + period) for due, late in floor_late)
+    starts = [a for a, _ in spans]
+    count = 0
+    for t in late_due_ns:
+        i = bisect.bisect_right(starts, t) - 1
+        if any(a <= t <= b for a, b in spans[max(0, i - 8) : i + 1]):
+            count += 1
+    return count
 
 
 def python_speed(iterations: int = 2_000_000) -> float:
@@ -704,6 +728,9 @@ def run_once(args: argparse.Namespace, run_dir: Path) -> RunResult:
         result.cpu, result.cpu_count, result.vanished = cpu_per_role(cpu0, cpu1)
         result.own_cpu = (own1 - own0) / result.window_s
         result.floor = finish_floor(floor)
+        if result.floor is not None:
+            result.explained = explained_by_floor(s.late_due_ns, result.floor["late_ticks"])
+            result.plant_late = len(s.late_due_ns)
     except RuntimeError as exc:
         result.error = str(exc) + ("\n" + rig.log_tails() if rig is not None else "")
     finally:
@@ -739,6 +766,11 @@ def print_run(k: int, repeat: int, args: argparse.Namespace, res: RunResult) -> 
         f" = {fmt(share, 100, 3, '%')}   target < {target:g} % ({label}): {verdict(ok)}"
     )
     print(f"  {floor_text(res.floor)}")
+    if res.floor is not None:
+        print(
+            f"    of the window's {res.plant_late} samples later than one period, {res.explained} were due"
+            " while the bare loop was late too (the host's stalls); the rest are the rig's own"
+        )
     samples, total = number(res.last, "samples"), number(res.last, "deadline_misses")
     whole = None if not samples or total is None else total / samples
     print(

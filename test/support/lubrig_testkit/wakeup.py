@@ -12,7 +12,8 @@ hypervisor gave to other guests ("steal", /proc/stat) in the same interval: on a
 is not running cannot wake anything on time.
 
 Prints one JSON object: ticks, late (> 1 period), late_half (> 0.5 period), worst_s, p99_s,
-steal_share, fifo (whether SCHED_FIFO took), latency_request.
+steal_share, fifo (whether SCHED_FIFO took), latency_request, and late_ticks: [due time on the
+system clock (ns, as a realtime node's stamps), lateness (ns)] of every late tick (at most 10,000).
 """
 
 from __future__ import annotations
@@ -66,6 +67,7 @@ def measure(seconds: float, priority: int, latency_request: bool) -> dict[str, o
     n = max(1, int(seconds * 1e9 / PERIOD_NS))
     lateness = [0] * n
     steal0, total0 = steal_and_total()
+    to_system = time.time_ns() - time.monotonic_ns()
     due = time.monotonic_ns()
     for i in range(n):
         due += PERIOD_NS
@@ -73,6 +75,8 @@ def measure(seconds: float, priority: int, latency_request: bool) -> dict[str, o
         sleep(CLOCK_MONOTONIC, TIMER_ABSTIME, ctypes.byref(ts), None)
         lateness[i] = time.monotonic_ns() - due
     steal1, total1 = steal_and_total()
+    start = due - n * PERIOD_NS + to_system
+    late_ticks = [[start + (i + 1) * PERIOD_NS, v] for i, v in enumerate(lateness) if v > PERIOD_NS][:10_000]
     lateness.sort()
     return {
         "ticks": n,
@@ -83,6 +87,7 @@ def measure(seconds: float, priority: int, latency_request: bool) -> dict[str, o
         "steal_share": (steal1 - steal0) / (total1 - total0) if total1 > total0 else None,
         "fifo": fifo,
         "latency_request": held is not None,
+        "late_ticks": late_ticks,
     }
 
 
