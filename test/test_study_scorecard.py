@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from functools import cache
 
-from lubrig_ros.app import study
+from lubrig_ros.app import study, study_runs
 from lubrig_ros.cli.paper import committed_scan
 from lubrig_ros.core.params import RigParameters
 from lubrig_ros.core.presets import load_case
@@ -20,7 +20,7 @@ PRESET_AGREES = {
 @cache
 def preset_scorecard() -> dict[str, study.Verdict]:
     rig = load_case(1).rig
-    metrics = study.measure(rig.coupling_name)
+    metrics = study_runs.measure(rig.coupling_name)
     return {v.key: v for v in study.scorecard(metrics, rig)}
 
 
@@ -37,10 +37,10 @@ def test_preset_reading_keeps_agreeing() -> None:
 
 
 def test_no_scanned_coupling_reproduces_more_than_the_presets() -> None:
-    scan = study.read_scan_csv(committed_scan())
+    scan = study_runs.read_scan_csv(committed_scan())
     assert min(scan) <= 1e-3 and max(scan) >= 1.0 and len(scan) >= 40
     best = max(
-        sum(v.agree for v in study.scorecard(scan[s], study.rig_with_coupling(RigParameters(), s)))
+        sum(v.agree for v in study.scorecard(scan[s], study_runs.rig_with_coupling(RigParameters(), s)))
         for s in scan
     )
     assert best <= sum(v.agree for v in preset_scorecard().values())

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from ..app.rundir import prepare_output_dir
-from ..app.study import read_scan_csv, write_scan_csv
+from ..app.study_runs import read_scan_csv, write_scan_csv
 from ..core.presets import config_dir
 from ..report.paper import HTML_PAGE, MIN_DURATION, PAGE_OUTPUTS, copy_to_docs, run_paper, total_rig_time
 from .common import add_force, parse_finite
