@@ -1,10 +1,10 @@
-"""Cost of the writer's flush bound (issue 15): time per message and file size, bound on and off.
+"""Cost of the writer's flush bound: time per message and file size, bound on and off.
 
     .venv/bin/python bench/bench_bag_flush.py [--seconds 60] [--rate 1000] [--block 50] [--repeat 3]
 
 Writes --seconds of rig time with BagWriter twice per layout, once with the default bound (a chunk
-every 0.2 s of log time or 1000 messages) and once with only the 1 MiB chunk size (the writer
-before issue 15 flushed at 1 MiB), and prints the best of --repeat wall times per message, the
+every 0.2 s of log time or 1000 messages) and once with only the 1 MiB chunk size (an
+MCAP writer's own default), and prints the best of --repeat wall times per message, the
 chunks written and the file size. Layouts: per sample (4 Float64 + JointState + Clock per sample,
 the old sim layout and the realtime one) and blocks (one 7 x --block Float64MultiArray payload, a
 RigStateBlock's size, plus a band block and /clock per block). No fsync (the recorder's wall-clock

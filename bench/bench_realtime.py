@@ -82,7 +82,7 @@ SAMPLE_RATE_HZ = 1000.0
 GAP_PERIOD_S = 1.0 / SAMPLE_RATE_HZ  # a sample later than this after its due time missed its deadline
 GAP_S = 1.5e-3  # consecutive state stamps further apart than this count as a gap
 STOP_GRACE_S = 90.0  # the launcher stops the nodes (10 s grace, +5 s), then the recorder (40 s, +5 s)
-# targets of issue 19 ("Real time that holds")
+# the realtime targets (docs/benchmarks.md "Nodes in real time")
 MISS_TARGET_PERCENT = {0: 0.1, 1: 0.5, 2: 2.0}
 LAG_TARGET_S = 0.050
 RECEIVED_TARGET_PERCENT = 99.5

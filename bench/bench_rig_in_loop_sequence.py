@@ -1,10 +1,10 @@
-"""Issue 11's rig-in-the-loop input sequence: does one tick's integration block the plant's output?
+"""A rig-in-the-loop input sequence: does one tick's integration block the plant's output?
 
     .venv/bin/python bench/bench_rig_in_loop_sequence.py [--hold 2.0]
 
 The plant runs in rig_in_loop mode; this process publishes std_msgs/Float64 band velocity at
 1 kHz (wall clock), 1e-7 -> -1e-7 -> 1e-7 -> 5e-324 -> 1e-7 m/s, each held for --hold s (the
-sequence that froze the plant's output for 2.8-6 s in issue 11), and receives the plant's RigState
+sequence that once froze the plant's output for 2.8-6 s; CHANGELOG.md), and receives the plant's RigState
 on <ns>/state. Printed per held value: states received, the longest wall-clock pause between two
 received states and the most states received in one 10 ms window (a burst after a freeze). Plus
 `uptime` before and after.

@@ -1,4 +1,4 @@
-"""Sim throughput of the node suite (issue 12 goal: `lubrig rig --case 1` recorded at >= 20x real time).
+"""Sim throughput of the node suite (target: `lubrig rig --case 1` recorded at >= 20x real time).
 
     .venv/bin/python bench/bench_sim_rate.py [--short 2] [--long 20] [--case 1] [--repeat 1]
     .venv/bin/python bench/bench_sim_rate.py --blocks 10,50,100,200,500   # block length choice

@@ -1,4 +1,4 @@
-"""Per-stream sample accounting (issue 12): counts, gaps, duplicates and out-of-order samples.
+"""Per-stream sample accounting: counts, gaps, duplicates and out-of-order samples.
 
 Every sample the plant publishes carries its index in its segment (RigState.sample_index; a block's
 first_sample_index + i) and its segment (0 from the plant's start, +1 per reset, the index

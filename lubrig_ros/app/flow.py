@@ -1,4 +1,4 @@
-"""Sim-mode flow control without ROS: how far belt_drive may send band samples (issue 12).
+"""Sim-mode flow control without ROS: how far belt_drive may send band samples.
 
 Every participant of a sim run reports on <ns>/flow_progress (lubrig_interfaces/FlowProgress)
 how many samples of the rig's output it has taken in which segment:

@@ -3,7 +3,7 @@
 A node module imports rclpy, numpy and the session layers before its main() can install rclpy's
 signal handling: half a second to a second in which a Ctrl-C, or the launcher stopping a run
 that ended before the slowest node had started, raised KeyboardInterrupt inside some import and
-printed its traceback into the node log (issue 11: no tracebacks on a clean stop). So the entry
+printed its traceback into the node log (a clean stop prints no traceback). So the entry
 point installs a SIGINT handler first that ends the process of the signal, as the default action
 does, without a traceback, and puts Python's own handler back once the node module is imported.
 

@@ -35,7 +35,7 @@ def run_heading(summary: dict[str, Any]) -> str:
 
 
 def _recording_lines(recording: dict[str, Any]) -> list[str]:
-    """The page's recording section: samples per stream, and every gap marked (issue 12).
+    """The page's recording section: samples per stream, and every gap marked.
 
     Samples the plant declared skipped (it fell behind real time by more than max_lag) are listed
     apart: missing from the bag, but never published, so not lost on the way.
