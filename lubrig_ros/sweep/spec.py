@@ -13,6 +13,7 @@ import hashlib
 import itertools
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -194,44 +195,49 @@ def _parse_axis(index: int, raw: Any, design: str, valid_paths: list[str]) -> Ax
             f"a {design} design needs exactly one of {list(kinds)}"
         )
     kind = given[0]
-    body = raw[kind]
-    if kind == "values":
-        if not isinstance(body, list) or not body:
-            raise SpecError(
-                f"{where} ({parameter}) values={body!r} is empty or not a list; expected >= 1 value"
-            )
-        values = tuple(body)
-        if len(set(map(repr, values))) != len(values):
-            raise SpecError(f"{where} ({parameter}) values={body!r} repeats a value; each value once")
-        return Axis(parameter, kind, values=values)
+    return _AXIS_KINDS[kind](where, parameter, kind, raw[kind])
+
+
+def _values_axis(where: str, parameter: str, kind: str, body: Any) -> Axis:
+    """values: [v, ...] (each once)."""
+    if not isinstance(body, list) or not body:
+        raise SpecError(f"{where} ({parameter}) values={body!r} is empty or not a list; expected >= 1 value")
+    values = tuple(body)
+    if len(set(map(repr, values))) != len(values):
+        raise SpecError(f"{where} ({parameter}) values={body!r} repeats a value; each value once")
+    return Axis(parameter, kind, values=values)
+
+
+def _keys(where: str, parameter: str, kind: str, body: Any, keys: set[str]) -> dict[str, Any]:
     if not isinstance(body, dict):
         raise SpecError(f"{where} ({parameter}) {kind}={body!r} is not valid; expected a mapping")
-    if kind in ("linspace", "logspace"):
-        extra = set(body) - {"start", "stop", "num"}
-        if extra or not {"start", "stop", "num"} <= set(body):
-            raise SpecError(
-                f"{where} ({parameter}) {kind}={body!r} is not valid; expected keys start, stop, num"
-            )
-        start = _number(f"{where}.{kind}.start", body["start"])
-        stop = _number(f"{where}.{kind}.stop", body["stop"])
-        num = _count(f"{where}.{kind}.num", body["num"])
-        if num > 1 and start == stop:
-            raise SpecError(
-                f"{where} ({parameter}) {kind} start = stop = {start!r} with num={num}: empty range"
-            )
-        if kind == "logspace":
-            if start <= 0 or stop <= 0:
-                raise SpecError(
-                    f"{where} ({parameter}) logspace start={start!r}, stop={stop!r}: "
-                    "both must be > 0 (they are values, not exponents)"
-                )
-            grid = np.geomspace(start, stop, num)
-        else:
-            grid = np.linspace(start, stop, num)
-        return Axis(parameter, kind, values=tuple(float(v) for v in grid))
-    extra = set(body) - {"low", "high"}
-    if extra or not {"low", "high"} <= set(body):
-        raise SpecError(f"{where} ({parameter}) {kind}={body!r} is not valid; expected keys low, high")
+    if set(body) != keys:
+        raise SpecError(
+            f"{where} ({parameter}) {kind}={body!r} is not valid; expected keys {', '.join(sorted(keys))}"
+        )
+    return body
+
+
+def _spaced_axis(where: str, parameter: str, kind: str, body: Any) -> Axis:
+    """Linspace / logspace: {start, stop, num} (logspace: values > 0, not exponents)."""
+    body = _keys(where, parameter, kind, body, {"start", "stop", "num"})
+    start = _number(f"{where}.{kind}.start", body["start"])
+    stop = _number(f"{where}.{kind}.stop", body["stop"])
+    num = _count(f"{where}.{kind}.num", body["num"])
+    if num > 1 and start == stop:
+        raise SpecError(f"{where} ({parameter}) {kind} start = stop = {start!r} with num={num}: empty range")
+    if kind == "logspace" and (start <= 0 or stop <= 0):
+        raise SpecError(
+            f"{where} ({parameter}) logspace start={start!r}, stop={stop!r}: "
+            "both must be > 0 (they are values, not exponents)"
+        )
+    grid = np.geomspace(start, stop, num) if kind == "logspace" else np.linspace(start, stop, num)
+    return Axis(parameter, kind, values=tuple(float(v) for v in grid))
+
+
+def _range_axis(where: str, parameter: str, kind: str, body: Any) -> Axis:
+    """Uniform / loguniform: {low, high}, low < high (loguniform: low > 0)."""
+    body = _keys(where, parameter, kind, body, {"low", "high"})
     low = _number(f"{where}.{kind}.low", body["low"])
     high = _number(f"{where}.{kind}.high", body["high"])
     if not low < high:
@@ -241,6 +247,16 @@ def _parse_axis(index: int, raw: Any, design: str, valid_paths: list[str]) -> Ax
     if kind == "loguniform" and low <= 0:
         raise SpecError(f"{where} ({parameter}) loguniform low={low!r} must be > 0")
     return Axis(parameter, kind, low=low, high=high)
+
+
+#: How each kind of axis range is read (GRID_KINDS and SAMPLED_KINDS say which design takes it).
+_AXIS_KINDS: dict[str, Callable[[str, str, str, Any], Axis]] = {
+    "values": _values_axis,
+    "linspace": _spaced_axis,
+    "logspace": _spaced_axis,
+    "uniform": _range_axis,
+    "loguniform": _range_axis,
+}
 
 
 def _design_values(spec: dict[str, Any], design: str, axes: list[Axis]) -> list[tuple[Any, ...]]:
@@ -296,9 +312,7 @@ def parse_spec(data: Any, base_dir: Path | None = None) -> SweepSpec:
     seen: set[str] = set()
     for axis in axes:
         if axis.parameter in seen:
-            raise SpecError(
-                f"duplicate axis {axis.parameter!r}: each parameter may appear on one axis only"
-            )
+            raise SpecError(f"duplicate axis {axis.parameter!r}: each parameter may appear on one axis only")
         seen.add(axis.parameter)
     rows = _design_values(data, design, axes)
     name = str(data.get("name", "sweep"))
@@ -317,9 +331,7 @@ def parse_spec(data: Any, base_dir: Path | None = None) -> SweepSpec:
         full = _config_mapping(config)
         points.append(Point(index, f"p{index:06d}-{_digest(full)[:8]}", values, full, wavelet))
     normalized = copy.deepcopy(data)
-    return SweepSpec(
-        name, str(data.get("description", "")), design, tuple(axes), tuple(points), normalized
-    )
+    return SweepSpec(name, str(data.get("description", "")), design, tuple(axes), tuple(points), normalized)
 
 
 def load_spec(path: str | Path) -> SweepSpec:
