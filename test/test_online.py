@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lubrig_ros.core.online import OnlineWaveletAnalyzer
+from lubrig_ros.core.online import DIRECT_COLUMNS_MAX, OnlineWaveletAnalyzer
 from lubrig_ros.core.params import RigParameters
 from lubrig_ros.core.wavelet import cwt
 
@@ -39,6 +39,32 @@ def test_window_power_equals_offline(precision, rtol):
         if u.window is not None:
             assert np.abs(u.window.power - ref.power).max() < rtol * peak
             assert np.allclose(u.window.time, ref.time + (pos - WINDOW) * DT)
+
+
+@pytest.mark.parametrize("precision, rtol", [("double", 1e-9), ("single", 1e-4)])
+def test_newest_columns_by_direct_kernels_equal_the_full_transform(precision, rtol):
+    """Between full analyses the newest columns come from the direct kernels, up to DIRECT_COLUMNS_MAX."""
+    x = signal()
+    a = OnlineWaveletAnalyzer(DT, window=WINDOW, n_scales=24, precision=precision, analysis_every=10**9)
+    a.push(x[:2000])  # the first full window: one full analysis
+    pos = 2000
+    for k in (1, 20, DIRECT_COLUMNS_MAX, DIRECT_COLUMNS_MAX + 1):
+        u = a.push(x[pos : pos + k])
+        pos += k
+        ref = cwt(x[pos - WINDOW : pos], DT, scales=a.scales)
+        assert (u.window is None) == (k <= DIRECT_COLUMNS_MAX)  # direct, or the FFT of the window
+        assert u.power.shape == (24, k)
+        assert np.abs(u.power - ref.power[:, -k:]).max() < rtol * ref.power.max()
+
+
+def test_direct_kernels_are_exact_for_an_offset_signal():
+    """A displacement far from zero (offset 1e4 × its swing): the window is centred before the product."""
+    x = 1e-3 + 1e-7 * signal()
+    a = OnlineWaveletAnalyzer(DT, window=WINDOW, n_scales=24, precision="single", analysis_every=10**9)
+    a.push(x[:2000])
+    u = a.push(x[2000:2020])
+    ref = cwt(x[2020 - WINDOW : 2020], DT, scales=a.scales)
+    assert np.abs(u.power - ref.power[:, -20:]).max() < 1e-4 * ref.power.max()
 
 
 def test_components_found_and_labelled():

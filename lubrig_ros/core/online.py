@@ -5,8 +5,9 @@ update, gives exactly the Torrence–Compo transform of the current window (same
 those samples):
 
 * the newest power columns by direct dot products with precomputed wavelet kernels (rows of the
-  circular kernel h = IFFT(ψ̂) of the padded window), cost J × window per new column, when no
-  full analysis is due (otherwise they are read from it);
+  circular kernel h = IFFT(ψ̂) of the padded window), one matrix product for all new columns,
+  cost J × (window + k) × k for k new columns, when no full analysis is due and k is at most
+  DIRECT_COLUMNS_MAX (otherwise they are read from it);
 * the whole-window power, dominant components and flags by one rfft + multiply + batched ifft
   with precomputed daughter FFTs, cost O(J × P log P) with P the padded window length.
 
@@ -37,7 +38,9 @@ from .wavelet import (
 )
 
 #: New columns per update up to which direct kernels are used (above it: take them from the FFT).
-DIRECT_COLUMNS_MAX = 16
+#: The direct product costs J × (window + k) × k; at the analysis node's defaults (window 2048,
+#: 32 scales) it stays below half the cost of the whole-window FFT up to here (docs/benchmarks.md).
+DIRECT_COLUMNS_MAX = 128
 
 
 @dataclass(frozen=True)
@@ -79,9 +82,7 @@ class OnlineWaveletAnalyzer:
     ) -> None:
         self.dt = _check_dt(dt)
         if not isinstance(window, (int, np.integer)) or window < MIN_SAMPLES:
-            raise ValueError(
-                f"window={window!r} is not valid; expected an integer >= {MIN_SAMPLES}"
-            )
+            raise ValueError(f"window={window!r} is not valid; expected an integer >= {MIN_SAMPLES}")
         if not isinstance(n_scales, (int, np.integer)) or n_scales < 2:
             raise ValueError(f"n_scales={n_scales!r} is not valid; expected an integer >= 2")
         if precision not in ("single", "double"):
@@ -117,11 +118,10 @@ class OnlineWaveletAnalyzer:
         lags = (self.window - 1 - np.arange(2 * self.window - 1)) % self._n_fft
         # kernel[:, d + m] multiplies x_m for the column d samples before the end
         kernel = h[:, lags]
-        self._k_re = np.ascontiguousarray(kernel.real)
-        self._k_im = np.ascontiguousarray(kernel.imag)
-        zeros = np.zeros((n_scales, 1))
-        self._cs_re = np.concatenate((zeros, np.cumsum(self._k_re, axis=1)), axis=1)
-        self._cs_im = np.concatenate((zeros, np.cumsum(self._k_im, axis=1)), axis=1)
+        # real rows, then imaginary rows: one matrix product per update
+        stacked = np.concatenate((kernel.real, kernel.imag))
+        real = np.float32 if precision == "single" else np.float64
+        self._kernel = np.ascontiguousarray(stacked, dtype=real)
         self._buf = np.zeros(self.window)
         self._vrel = np.zeros(self.window)
         self._have_vrel = False
@@ -149,15 +149,21 @@ class OnlineWaveletAnalyzer:
         ring[start : start + first] = x[:first]
         ring[: x.size - first] = x[first:]
 
-    def _direct_columns(self, x: np.ndarray, mean: float, k: int) -> np.ndarray:
-        """|W|² of the k newest columns by direct kernels, oldest first, shape (J, k)."""
-        n = self.window
-        out = np.empty((self.scales.size, k))
-        for i, d in enumerate(range(k - 1, -1, -1)):
-            re = self._k_re[:, d : d + n] @ x - mean * (self._cs_re[:, d + n] - self._cs_re[:, d])
-            im = self._k_im[:, d : d + n] @ x - mean * (self._cs_im[:, d + n] - self._cs_im[:, d])
-            out[:, i] = re * re + im * im
-        return out
+    def _direct_columns(self, xc: np.ndarray, k: int) -> np.ndarray:
+        """|W|² of the k newest columns of the centred window xc by direct kernels, oldest first, (J, k).
+
+        Column i (d = k − 1 − i samples before the end) is Σ_m kernel[:, d + m] · xc_m; for all k
+        columns at once that is kernel[:, :n + k − 1] @ H with the Hankel matrix H[u, i] =
+        xc_pad[u + i] (xc with k − 1 zeros on each side): one matrix product of the stacked real
+        and imaginary kernels.
+        """
+        n, j = self.window, self.scales.size
+        pad = np.zeros(k - 1, dtype=self._kernel.dtype)
+        padded = np.concatenate((pad, xc.astype(self._kernel.dtype), pad))
+        hankel = np.ascontiguousarray(np.lib.stride_tricks.sliding_window_view(padded, k))
+        both = self._kernel[:, : n + k - 1] @ hankel
+        re, im = both[:j].astype(float), both[j:].astype(float)
+        return re * re + im * im
 
     def push(
         self,
@@ -180,9 +186,7 @@ class OnlineWaveletAnalyzer:
         if relative_velocity is not None:
             v_new = np.atleast_1d(np.asarray(relative_velocity, dtype=float))
             if v_new.shape != x_new.shape or not np.all(np.isfinite(v_new)):
-                raise ValueError(
-                    f"relative_velocity must be finite with the samples' shape {x_new.shape}"
-                )
+                raise ValueError(f"relative_velocity must be finite with the samples' shape {x_new.shape}")
         if band_velocity is not None:
             self._band_velocity = float(band_velocity)
         empty = OnlineUpdate(False, np.empty(0), np.empty((self.scales.size, 0)), self.frequencies)
@@ -216,7 +220,7 @@ class OnlineWaveletAnalyzer:
         elif result is not None:
             columns = result.power[:, -k:]
         else:
-            columns = self._direct_columns(x, mean, k) / variance
+            columns = self._direct_columns(xc, k) / variance
         components: list[Component] = []
         flags = None
         if result is not None:

@@ -7,6 +7,12 @@ printed its traceback into the node log (a clean stop prints no traceback). So t
 point installs a SIGINT handler first that ends the process of the signal, as the default action
 does, without a traceback, and puts Python's own handler back once the node module is imported.
 
+Numerical libraries run single-threaded in a node (`SINGLE_THREADED`, set before the node module
+imports numpy, where the environment does not say otherwise): a rig node is one thread of
+numerics on a machine shared with the other nodes and the real-time loop, and OpenBLAS's worker
+threads spin while they wait, so a small matrix product of the analysis costs many times more
+wall and CPU time with them than without (docs/benchmarks.md, online wavelet).
+
 SIGUSR1 writes the Python stack of every thread to stderr (the node log; faulthandler): the
 launcher sends it to a node that has not stopped within its grace period, before SIGTERM, so a
 wedged node leaves the evidence of where it hung.
@@ -53,6 +59,16 @@ def node_help(name: str) -> str:
     return "\n".join(lines)
 
 
+#: Environment of a node process's numerical libraries: one thread each (see the module docstring).
+SINGLE_THREADED = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def single_threaded_numerics() -> None:
+    """Ask numpy's BLAS for one thread (before numpy is imported; an explicit setting is kept)."""
+    for key, value in SINGLE_THREADED.items():
+        os.environ.setdefault(key, value)
+
+
 def _die_of_sigint(_signum: int, _frame: FrameType | None) -> None:
     """SIGINT before the node is set up: end with the default action (exit status -2)."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
@@ -67,6 +83,7 @@ def _run(name: str) -> int:
         return 0
     signal.signal(signal.SIGINT, _die_of_sigint)
     faulthandler.register(signal.SIGUSR1, all_threads=True)
+    single_threaded_numerics()
     module = importlib.import_module(f"lubrig_ros.nodes.{name}")
     # imported: Python's own handler again, which rclpy's signal handling chains to (a SIGINT to a
     # running node is a KeyboardInterrupt that its main turns into a clean stop, exit status 0)
