@@ -50,7 +50,9 @@ def _listen(url: str, seconds: float, *topics: str) -> tuple[list[dict], list[di
     _client_ready()
     done = subprocess.run(
         ["node", str(CLIENT_DIR / "client.mjs"), url, str(seconds), *topics],
-        capture_output=True, text=True, timeout=seconds + 60,
+        capture_output=True,
+        text=True,
+        timeout=seconds + 60,
     )
     assert done.returncode == 0, done.stderr
     lines = [json.loads(line) for line in done.stdout.splitlines() if line.strip()]
@@ -82,6 +84,32 @@ def _stamp_ns(message: dict) -> int:
     return int(stamp["sec"]) * 1_000_000_000 + int(stamp["nanosec"])
 
 
+def _assert_shown_samples(states: list[dict], rate: float) -> None:
+    """Samples of a block topic: the rate rule's samples and, between two of them, extremes only.
+
+    The rate rule's samples are >= 1/rate apart, and every other sample shown lies between two of
+    them (before the next is due), so they are found again greedily; each sample in between holds
+    a value outside the range of the two around it, in some field of EXTREME_FIELDS, and there
+    are at most two per field in each interval (app/display.py, Envelope).
+    """
+    from lubrig_ros.app.display import EXTREME_FIELDS
+
+    period = round(1e9 / rate)
+    anchors: list[int] = []
+    for k, s in enumerate(states):
+        if not anchors or _stamp_ns(s) >= _stamp_ns(states[anchors[-1]]) + period:
+            anchors.append(k)
+    _assert_decimated([_stamp_ns(states[k]) for k in anchors], rate)
+    for a, b in itertools.pairwise(anchors):
+        between = states[a + 1 : b]
+        assert len(between) <= 2 * len(EXTREME_FIELDS)
+        for s in between:
+            assert any(
+                not min(states[a][f], states[b][f]) <= s[f] <= max(states[a][f], states[b][f])
+                for f in EXTREME_FIELDS
+            ), (states[a], s, states[b])
+
+
 def _assert_decimated(stamps: list[int], rate: float) -> None:
     """Consecutive stamps >= 1/rate apart, so count <= span * rate + 1."""
     period = round(1e9 / rate)
@@ -111,7 +139,7 @@ def test_realtime_rig_state_and_wavelet_image_in_foxglove_client(procs):
         values = _numbers(m["message"])
         assert values and all(math.isfinite(v) for v in values), m
     stamps = [_stamp_ns(m["message"]) for m in states]
-    _assert_decimated(stamps, 20.0)
+    _assert_shown_samples([m["message"] for m in states], 20.0)
     # the plant publishes one state per 1 ms of rig time: the view showed a small share of them
     assert len(states) <= (stamps[-1] - stamps[0]) / 1e6 / 40
     # log time is the rig time of the message
@@ -122,56 +150,65 @@ def test_realtime_rig_state_and_wavelet_image_in_foxglove_client(procs):
         assert img["data"]["bytes"] == img["height"] * img["step"] > 0
 
 
-def test_state_blocks_shown_as_decimated_rig_states(procs, probe):
-    """RigStateBlock on <ns>/state_block (sim mode's plant output) arrives as RigState samples.
+def _ramp_block(k: int, n: int = 100, spikes: frozenset[int] = frozenset()):
+    """Block k of n samples 1 ms apart with known values; velocity 1e-3 m/s at the spike indices."""
+    from lubrig_interfaces.msg import RigStateBlock
 
-    The blocks come from a publisher in this test with known values, so every sample the client
-    decodes is checked against the block it came from; rate 100 Hz over 1 kHz samples.
-    """
+    msg = RigStateBlock()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * n * 1_000_000, 1_000_000_000)
+    msg.sample_period = 1e-3
+    msg.first_sample_index = k * n
+    msg.segment = 0
+    index = [k * n + i for i in range(n)]
+    msg.displacement = [1e-9 * i for i in index]
+    msg.velocity = [1e-3 if i in spikes else 2e-9 * i for i in index]
+    msg.friction_coefficient = [0.1] * n
+    msg.friction_force = [1.0] * n
+    msg.band_velocity = [1e-7] * n
+    msg.relative_velocity = [1e-7 - 2e-9 * i for i in index]
+    msg.belt_travel = [1e-10 * i for i in index]
+    return msg
+
+
+def _serve_blocks(procs, probe, rate: str, expect: str, spikes: frozenset[int] = frozenset()):
+    """Blocks published here (five times faster than real time) while the client listens."""
+    import threading
+    import time
+
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
     from lubrig_interfaces.msg import RigStateBlock
 
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     pub = probe.publisher(f"{NS}/state_block", RigStateBlock, qos)
-    url = _serve(procs, "--rate", "state=100")
-
-    def block(k: int, n: int = 100) -> RigStateBlock:
-        msg = RigStateBlock()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * n * 1_000_000, 1_000_000_000)
-        msg.sample_period = 1e-3
-        msg.first_sample_index = k * n
-        msg.segment = 0
-        index = [k * n + i for i in range(n)]
-        msg.displacement = [1e-9 * i for i in index]
-        msg.velocity = [2e-9 * i for i in index]
-        msg.friction_coefficient = [0.1] * n
-        msg.friction_force = [1.0] * n
-        msg.band_velocity = [1e-7] * n
-        msg.relative_velocity = [1e-7 - 2e-9 * i for i in index]
-        msg.belt_travel = [1e-10 * i for i in index]
-        return msg
-
-    import threading
-    import time
-
+    url = _serve(procs, "--rate", rate)
     stop = threading.Event()
 
     def publish() -> None:
         k = 0
         while not stop.is_set():
             if pub.get_subscription_count() > 0:
-                pub.publish(block(k))
+                pub.publish(_ramp_block(k, spikes=spikes))
                 k += 1
-            time.sleep(0.02)  # 0.1 s of rig time per 20 ms: five times faster than real time
+            time.sleep(0.02)  # 0.1 s of rig time per 20 ms
 
     worker = threading.Thread(target=publish, daemon=True)
     worker.start()
     try:
-        advertised, messages = _listen(url, 180.0, f"{NS}/state=30")
+        return _listen(url, 180.0, expect)
     finally:
         stop.set()
         worker.join(5)
+
+
+def test_state_blocks_shown_as_decimated_rig_states(procs, probe):
+    """RigStateBlock on <ns>/state_block (sim mode's plant output) arrives as RigState samples.
+
+    The blocks come from a publisher in this test with known values, so every sample the client
+    decodes is checked against the block it came from; rate 100 Hz over 1 kHz samples. The
+    values rise monotonically: the view adds no extremes, so the samples are 10 ms apart.
+    """
+    advertised, messages = _serve_blocks(procs, probe, "state=100", f"{NS}/state=30")
     channels = {c["topic"]: c for c in advertised}
     assert channels[f"{NS}/state"]["schemaName"] == "lubrig_interfaces/msg/RigState"
     assert f"{NS}/state_block" not in channels  # shown as its samples only
@@ -186,6 +223,22 @@ def test_state_blocks_shown_as_decimated_rig_states(procs, probe):
         assert s["belt_travel"] == pytest.approx(1e-10 * i, rel=1e-12)
         assert s["segment"] == 0 and s["friction_coefficient"] == 0.1
     _assert_decimated([_stamp_ns(s) for s in states], 100.0)
+
+
+def test_a_one_sample_slip_spike_survives_decimation(procs, probe):
+    """A velocity spike of one sample between two displayed samples reaches the Foxglove client."""
+    spikes = frozenset(range(1037, 100_000, 250))  # sample 37 of every 250: never on the 20 Hz grid
+    _advertised, messages = _serve_blocks(procs, probe, "state=20", f"{NS}/state=60", spikes)
+    states = [m["message"] for m in messages if m["topic"] == f"{NS}/state"]
+    indices = [s["sample_index"] for s in states]
+    assert indices == sorted(indices) and len(states) >= 60
+    span = range(indices[0] + 1, indices[-1] + 1)
+    expected = [i for i in sorted(spikes) if i in span]
+    assert expected and [i for i in indices if i in spikes] == expected  # every spike, once
+    for s in states:
+        if s["sample_index"] in spikes:
+            assert s["velocity"] == 1e-3 and s["displacement"] == pytest.approx(1e-9 * s["sample_index"])
+    _assert_shown_samples(states, 20.0)
 
 
 def _free_port() -> int:
@@ -204,8 +257,20 @@ def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path):
     """
     port = _free_port()
     rig = procs.script(
-        "lubrig", "rig", "--case", "1", "--mode", "realtime", "--duration", "900", "--bag",
-        str(tmp_path / "run"), "--no-recorder", "--no-report", "--view", str(port),
+        "lubrig",
+        "rig",
+        "--case",
+        "1",
+        "--mode",
+        "realtime",
+        "--duration",
+        "900",
+        "--bag",
+        str(tmp_path / "run"),
+        "--no-recorder",
+        "--no-report",
+        "--view",
+        str(port),
     )
     rig.wait_for_output("live view on", 180)
     view_log = tmp_path / "run" / "logs" / "view.log"
@@ -220,7 +285,7 @@ def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path):
     states = [m["message"] for m in messages if m["topic"] == f"{NS}/state"]
     assert len(states) >= 20
     assert all(math.isfinite(v) for s in states for v in _numbers(s))
-    _assert_decimated([_stamp_ns(s) for s in states], 50.0)  # the view's default for state
+    _assert_shown_samples(states, 50.0)  # the view's default for state
     # Ctrl-C: the launcher stops the nodes and the view, and exits 130 (interrupted, as a shell says)
     assert rig.stop(signal.SIGINT, 120) == 130, rig.log()
     assert "interrupted, stopping the nodes" in rig.errors()

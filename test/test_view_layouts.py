@@ -46,6 +46,48 @@ def test_decimator_blocks_take_the_same_samples_as_single_messages():
     assert taken == singles
 
 
+def _shown_with_envelope(rate: float, series, n: int = 5000) -> list[int]:
+    """Sample indices shown of n samples 1 ms apart (blocks of 20), series(i) their field values."""
+    d = display.Decimator(rate, wall_factor=1e6)
+    env = display.Envelope(len(series(0)))
+    shown: list[int] = []
+    for k in range(0, n, 20):
+        taken = set(d.take_block(k * MS, 1e6, 20, 0))
+        for i in range(20):
+            values = series(k + i)
+            if i not in taken:
+                env.offer(values, k + i)
+                continue
+            shown += env.shown(values)  # type: ignore[arg-type]
+            shown.append(k + i)
+    return shown
+
+
+def test_envelope_keeps_a_one_sample_spike_and_adds_nothing_to_a_monotone_stretch():
+    spikes = {1234, 2000 + 17, 4099}
+    plain = _shown_with_envelope(30.0, lambda i: [1e-9 * i, 1e-8, 0.1])  # ramp, constants
+    single = display.Decimator(30.0, wall_factor=1e6)
+    assert plain == [i for i in range(5000) if single.take(i * MS, 0)]  # the rate rule alone
+    spiky = _shown_with_envelope(30.0, lambda i: [1e-9 * i, 5e-6 if i in spikes else 1e-8, 0.1])
+    assert set(spiky) - set(plain) == spikes and set(plain) <= set(spiky)
+    assert spiky == sorted(spiky)  # time order
+    dips = _shown_with_envelope(30.0, lambda i: [1e-9 * i, 1e-8, -0.2 if i == 3001 else 0.1])
+    assert set(dips) - set(plain) == {3001}  # the least value too, of any field
+
+
+def test_envelope_keeps_the_peaks_of_an_oscillation_faster_than_the_display_rate():
+    import math
+
+    def sine(i):
+        return [math.sin(2 * math.pi * 37.0 * i * 1e-3)]
+
+    shown = _shown_with_envelope(20.0, sine)
+    anchors = _shown_with_envelope(20.0, lambda i: [0.0])
+    values = [sine(i)[0] for i in shown]
+    assert max(values) > 0.999 and min(values) < -0.999  # the samples every 50 ms alone miss them
+    assert len(shown) <= 3 * len(anchors)  # at most a least and a greatest value per interval
+
+
 def test_decimator_restarts_when_time_goes_back():
     d = display.Decimator(10.0, wall_factor=1e6)
     assert d.take(5_000 * MS, 0)
@@ -74,8 +116,14 @@ def test_rate_zero_forwards_everything_and_rates_resolve_in_the_namespace():
 
 @pytest.mark.parametrize(
     ("item", "says"),
-    [("state", "TOPIC=HZ"), ("=5", "TOPIC=HZ"), ("state=fast", "'fast' is not a number"),
-     ("state=-1", ">= 0 Hz"), ("state=nan", ">= 0 Hz"), ("bad-name=5", "rate topic")],
+    [
+        ("state", "TOPIC=HZ"),
+        ("=5", "TOPIC=HZ"),
+        ("state=fast", "'fast' is not a number"),
+        ("state=-1", ">= 0 Hz"),
+        ("state=nan", ">= 0 Hz"),
+        ("bad-name=5", "rate topic"),
+    ],
 )
 def test_bad_rates_are_refused_naming_the_value(item, says):
     with pytest.raises(ParameterError, match=re.escape(says)):
@@ -116,7 +164,7 @@ def _check_path(path: str) -> None:
     docs = contract.documented_topics()
     topic = next((t for t in sorted(docs, key=len, reverse=True) if path.startswith(t)), None)
     assert topic is not None, f"{path}: no contract topic"
-    field = path[len(topic) + 1:]
+    field = path[len(topic) + 1 :]
     assert field in _msg_fields(docs[topic].msgtype), f"{path}: no field {field!r} in {docs[topic].msgtype}"
 
 

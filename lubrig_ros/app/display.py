@@ -9,12 +9,18 @@ Rate 0 forwards every message (latched topics, /diagnostics whose statuses come 
 
 Blocks (``state_block``: lubrig_interfaces/RigStateBlock) are shown as the per-sample topic they
 stand for (``state``: RigState), the samples taken on the same rule, so a layout plots
-``<ns>/state`` in every mode.
+``<ns>/state`` in every mode. Between two samples shown the view also keeps the extremes of a
+block topic's samples (`Envelope`, fields `EXTREME_FIELDS`): the samples holding the least and
+the greatest value of each field since the last sample shown, where that value lies outside the
+range of the two shown samples around it. They are shown just before the later of the two, in
+time order: a one-sample slip spike between two displayed samples is shown, a monotone stretch
+adds nothing, and a display interval holds at most 1 + 2 × len(EXTREME_FIELDS) samples.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from ..core.params import ParameterError
@@ -43,6 +49,9 @@ DISPLAY_RATES: dict[str, float] = {
     "flow_progress": 10.0,
     "/clock": 10.0,
 }
+
+#: Fields of a block's samples whose extremes between two samples shown are kept (Envelope).
+EXTREME_FIELDS = ("displacement", "velocity", "friction_coefficient")
 
 #: Block topics shown as the per-sample topic they stand for: block name -> (sample name, type).
 EXPANDED_BLOCKS: dict[str, tuple[str, str]] = {
@@ -144,3 +153,51 @@ class Decimator:
             self._last = t
             i += 1
         return taken
+
+
+class Envelope:
+    """The extremes of each field between two samples shown (see the module docstring).
+
+    `offer` each sample not shown; `shown` a sample that is shown returns the held samples to
+    show before it (their items as offered, in offer order). Items are whatever the caller needs
+    to show a sample later (the view keeps the sample's values).
+    """
+
+    def __init__(self, n_fields: int) -> None:
+        self.n_fields = n_fields
+        self._ends: Sequence[float] | None = None  # the values of the last sample shown
+        self._low: list[tuple[float, int, object] | None] = [None] * n_fields
+        self._high: list[tuple[float, int, object] | None] = [None] * n_fields
+        self._order = 0
+
+    def offer(self, values: Sequence[float], item: object) -> None:
+        """A sample not shown (on the rate rule): held while it is a field's least or greatest."""
+        self._order += 1
+        for f in range(self.n_fields):
+            v = values[f]
+            low, high = self._low[f], self._high[f]
+            if low is None or v < low[0]:
+                self._low[f] = (v, self._order, item)
+            if high is None or v > high[0]:
+                self._high[f] = (v, self._order, item)
+
+    def shown(self, values: Sequence[float]) -> list[object]:
+        """A sample is shown now: the held extremes outside the range of it and the one before."""
+        keep: dict[int, object] = {}
+        if self._ends is not None:
+            for f in range(self.n_fields):
+                top, bottom = max(self._ends[f], values[f]), min(self._ends[f], values[f])
+                high, low = self._high[f], self._low[f]
+                if high is not None and high[0] > top:
+                    keep[high[1]] = high[2]
+                if low is not None and low[0] < bottom:
+                    keep[low[1]] = low[2]
+        self.reset()
+        self._ends = list(values)
+        return [keep[k] for k in sorted(keep)]
+
+    def reset(self) -> None:
+        """Forget what was held (a reset, time going back: the next sample shown starts afresh)."""
+        self._ends = None
+        self._low = [None] * self.n_fields
+        self._high = [None] * self.n_fields

@@ -123,6 +123,8 @@ class Served:
     decimator: display.Decimator
     stamped: bool
     resets: bool = False  # the plant's samples and /clock: rig time may go back (reset)
+    envelope: display.Envelope | None = None  # block topics: extremes between samples shown
+    newest_ns: int = -1  # block topics: stamp of the newest sample seen (time going back: reset)
     received: int = 0
     forwarded: int = 0
     malformed: int = 0
@@ -130,22 +132,45 @@ class Served:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Options of the view (the `view` console script and `lubrig view`)."""
-    p.add_argument("--namespace", default=DEFAULT_NAMESPACE, metavar="NS",
-                   help=f"the rig's namespace (default {DEFAULT_NAMESPACE})")
-    p.add_argument("--host", default=DEFAULT_HOST,
-                   help=f"address to bind (default {DEFAULT_HOST}: this machine only; e.g. 0.0.0.0 "
-                   "serves every network the machine is on)")
-    p.add_argument("--port", type=int, default=DEFAULT_PORT,
-                   help=f"TCP port (default {DEFAULT_PORT}; 0 picks a free one)")
-    p.add_argument("--rate", action="append", default=[], metavar="TOPIC=HZ",
-                   help="display rate of a topic, messages per second of rig time (0: every message); "
-                   f"repeatable; default {display.DEFAULT_DISPLAY_RATE:g} Hz for sample streams, "
-                   "10 Hz for analysis outputs, every message for latched topics and /diagnostics")
-    p.add_argument("--default-rate", type=float, default=display.DEFAULT_DISPLAY_RATE, metavar="HZ",
-                   help="display rate of topics without a --rate or a built-in one")
-    p.add_argument("--layout", choices=sorted(layouts.LAYOUTS),
-                   help="print the viewer layout for --namespace (as shipped in config/ for /lubrig) "
-                   "and exit")
+    p.add_argument(
+        "--namespace",
+        default=DEFAULT_NAMESPACE,
+        metavar="NS",
+        help=f"the rig's namespace (default {DEFAULT_NAMESPACE})",
+    )
+    p.add_argument(
+        "--host",
+        default=DEFAULT_HOST,
+        help=f"address to bind (default {DEFAULT_HOST}: this machine only; e.g. 0.0.0.0 "
+        "serves every network the machine is on)",
+    )
+    p.add_argument(
+        "--port",
+        type=int,
+        default=DEFAULT_PORT,
+        help=f"TCP port (default {DEFAULT_PORT}; 0 picks a free one)",
+    )
+    p.add_argument(
+        "--rate",
+        action="append",
+        default=[],
+        metavar="TOPIC=HZ",
+        help="display rate of a topic, messages per second of rig time (0: every message); "
+        f"repeatable; default {display.DEFAULT_DISPLAY_RATE:g} Hz for sample streams, "
+        "10 Hz for analysis outputs, every message for latched topics and /diagnostics",
+    )
+    p.add_argument(
+        "--default-rate",
+        type=float,
+        default=display.DEFAULT_DISPLAY_RATE,
+        metavar="HZ",
+        help="display rate of topics without a --rate or a built-in one",
+    )
+    p.add_argument(
+        "--layout",
+        choices=sorted(layouts.LAYOUTS),
+        help="print the viewer layout for --namespace (as shipped in config/ for /lubrig) and exit",
+    )
 
 
 def build_parser(prog: str = "view") -> argparse.ArgumentParser:
@@ -236,7 +261,7 @@ class View:
         from .interfaces import message_class
 
         cls = message_class(msgtype)
-        relative = topic[len(self.namespace):].lstrip("/") if self.namespace != "/" else topic[1:]
+        relative = topic[len(self.namespace) :].lstrip("/") if self.namespace != "/" else topic[1:]
         expanded = display.EXPANDED_BLOCKS.get(relative)
         if expanded is not None:
             sample_topic = topic[: len(topic) - len(relative)] + expanded[0]
@@ -263,9 +288,7 @@ class View:
         from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
         infos = self.node.get_publishers_info_by_topic(topic)
-        reliable = bool(infos) and all(
-            i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos
-        )
+        reliable = bool(infos) and all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
         latched = bool(infos) and all(
             i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos
         )
@@ -303,6 +326,19 @@ class View:
         per_block = ("header", "sample_index", "segment")
         sample_fields = [f for f in sample_cls.get_fields_and_field_types() if f not in per_block]
 
+        def show(i: int, block: Any, arrays: dict[str, Any]) -> None:
+            """Sample i of a block, as the per-sample message it stands for."""
+            stamp = block.header.stamp.sec * 1_000_000_000 + block.header.stamp.nanosec
+            stamp += round(i * float(block.sample_period) * 1e9)
+            sample = sample_cls()
+            sample.header.stamp.sec, sample.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
+            sample.sample_index = block.first_sample_index + i
+            sample.segment = block.segment
+            for name, values in arrays.items():
+                setattr(sample, name, float(values[i]))
+            served.channel.log(serialize_message(sample), log_time=stamp)
+            served.forwarded += 1
+
         def callback(data: bytes) -> None:
             served.received += 1
             try:
@@ -314,17 +350,21 @@ class View:
             except Exception:  # a malformed block is counted, never fatal
                 served.malformed += 1
                 return
-            taken = served.decimator.take_block(first, step, count, time.monotonic_ns())
-            for i in taken:
-                stamp = first + round(i * step)
-                sample = sample_cls()
-                sample.header.stamp.sec, sample.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
-                sample.sample_index = block.first_sample_index + i
-                sample.segment = block.segment
-                for name, values in arrays.items():
-                    setattr(sample, name, float(values[i]))
-                served.channel.log(serialize_message(sample), log_time=stamp)
-                served.forwarded += 1
+            taken = set(served.decimator.take_block(first, step, count, time.monotonic_ns()))
+            extremes = [arrays[f] for f in display.EXTREME_FIELDS if f in arrays]
+            if served.envelope is None:
+                served.envelope = display.Envelope(len(extremes))
+            if first < served.newest_ns:
+                served.envelope.reset()  # a reset, a replay from the start
+            for i in range(count):
+                values = [float(a[i]) for a in extremes]
+                if i not in taken:
+                    served.envelope.offer(values, (i, block, arrays))
+                    continue
+                for held in served.envelope.shown(values):
+                    show(*held)  # type: ignore[misc]
+                show(i, block, arrays)
+            served.newest_ns = first + round((count - 1) * step) if count else served.newest_ns
             if count:
                 self._advance(first + round((count - 1) * step), True)
 
@@ -373,8 +413,9 @@ def run(args: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
         )
     except Exception as exc:  # the SDK raises its own error type for a bind failure
         raise OSError(f"cannot serve on {args.host}:{args.port}: {exc}") from exc
-    rclpy.init(args=["--ros-args", *ros_args] if ros_args else [],
-               signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(
+        args=["--ros-args", *ros_args] if ros_args else [], signal_handler_options=SignalHandlerOptions.NO
+    )
     node = rclpy.create_node("view", namespace=args.namespace)
     if node.get_namespace() != args.namespace:  # remapped (-r __ns:=, a launch file's namespace)
         args.namespace = node.get_namespace()
@@ -407,7 +448,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ros_args: list[str] = []
     if "--ros-args" in args_list:
         at = args_list.index("--ros-args")
-        args_list, ros_args = args_list[:at], args_list[at + 1:]
+        args_list, ros_args = args_list[:at], args_list[at + 1 :]
     args = build_parser().parse_args(args_list)
     try:
         return run(args, ros_args)
