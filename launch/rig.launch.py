@@ -9,7 +9,9 @@ launcher that works everywhere; `make setup` registers the package in the venv's
 AMENT_PREFIX_PATH=.venv finds it). Like `lubrig rig`, it resolves the run once (case | config file |
 default, plus duration and convention), writes it to RUN_DIR/run_config.yaml (`run_dir:=DIR`,
 default ~/.ros/lubrig/<time>) and hands that file to belt_drive, plant and analysis as their
-`config_file` parameter, with config/nodes.yaml for the node settings. The nodes run in
+`config_file` parameter, with config/nodes.yaml for the node settings. Which nodes run with which
+parameters, remappings and start order is the launch plan (lubrig_ros/app/rig_plan.py), the one
+`lubrig rig` runs too; this file turns it into launch_ros actions (`node_actions`). The nodes run in
 `namespace` (default /lubrig, launch_ros's `namespace=`: the nodes' relative topic and service
 names resolve under it; a relative value such as `rig2` goes under an enclosing
 PushRosNamespace). Like `lubrig rig`, discovery and transports stay on this host unless
@@ -22,9 +24,8 @@ shut down (OnProcessExit → Shutdown: the other nodes get SIGINT and end with s
 that ended otherwise than cleanly (the plant's 3: the rig did not hold real time; 2: a bad
 parameter; a crash) makes the launch fail: ros2 launch exits 1 (LaunchService.run returns 0 or 1)
 with an error naming the node and its status. The plant starts last, once belt_drive and the
-analysis have printed their start lines (as `lubrig rig` does in realtime, where their CPU-bound
-start-up beside the plant's first ticks made those late; in sim, so that a short run is not over
-before the analysis is up).
+analysis have printed their start lines (the plan's `after`: nothing records here, so nothing
+else holds the run).
 """
 
 from __future__ import annotations
@@ -54,20 +55,36 @@ except ImportError as exc:  # pragma: no cover - launch is not available from pi
 ARGUMENTS = {
     "case": ("0", "study case 1..10 (config/cases/caseNN.yaml); 0: config_file, else the default rig"),
     "config_file": ("", "run configuration YAML, used when case is 0; empty: config/rig.yaml"),
-    "mode": ("sim", "sim: rig time, as fast as the nodes go, ends when the plant has integrated "
-             "`duration`; realtime: 1 kHz on the wall clock, ends `duration` s after the plant's "
-             "first sample"),
-    "duration": ("10.0", "run length in s (rig time in sim, wall time in realtime); empty: the run "
-                 "configuration's; the launch ends by itself when it is over"),
+    "mode": (
+        "sim",
+        "sim: rig time, as fast as the nodes go, ends when the plant has integrated "
+        "`duration`; realtime: 1 kHz on the wall clock, ends `duration` s after the plant's "
+        "first sample",
+    ),
+    "duration": (
+        "10.0",
+        "run length in s (rig time in sim, wall time in realtime); empty: the run "
+        "configuration's; the launch ends by itself when it is over",
+    ),
     "convention": ("", "velocity coupling: physical | paper | hertz; empty: the run configuration's"),
-    "run_dir": ("", "folder for run_config.yaml (the resolved run every node reads); empty: "
-                "~/.ros/lubrig/<time>"),
-    "namespace": (DEFAULT_NAMESPACE, "ROS namespace of the nodes, their topics and services "
-                  "(relative: under an enclosing PushRosNamespace)"),
-    "network": ("false", "true: hosts on the network may discover the rig (default: this host "
-                "only; an unsecured domain lets them drive it, docs/security.md)"),
-    "publish_clock": ("true", "sim: the plant publishes rig time on /clock (one owner per ROS "
-                      "domain: false for a second rig)"),
+    "run_dir": (
+        "",
+        "folder for run_config.yaml (the resolved run every node reads); empty: ~/.ros/lubrig/<time>",
+    ),
+    "namespace": (
+        DEFAULT_NAMESPACE,
+        "ROS namespace of the nodes, their topics and services "
+        "(relative: under an enclosing PushRosNamespace)",
+    ),
+    "network": (
+        "false",
+        "true: hosts on the network may discover the rig (default: this host "
+        "only; an unsecured domain lets them drive it, docs/security.md)",
+    ),
+    "publish_clock": (
+        "true",
+        "sim: the plant publishes rig time on /clock (one owner per ROS domain: false for a second rig)",
+    ),
     "view": ("false", "true: also the live view for Foxglove (lubrig view) on ws://127.0.0.1:8765"),
 }
 CHOICES = {"mode": ["sim", "realtime"]}
@@ -123,10 +140,29 @@ def _when_ready(names: dict[str, str], start: list):
     return seen
 
 
+def node_actions(plan) -> dict[str, dict]:
+    """The launch_ros `Node` arguments of every node of the plan (app/rig_plan.py), by name.
+
+    The same plan `lubrig rig` turns into command lines: parameters, remappings, namespace.
+    """
+    return {
+        node.name: {
+            "package": "lubrig_ros",
+            "executable": node.name,
+            "name": node.name,
+            "namespace": plan.namespace,
+            "parameters": [str(plan.params_file), dict(node.parameters)],
+            "remappings": list(node.remappings),
+        }
+        for node in plan.nodes
+    }
+
+
 def _nodes(context, *_args, **_kwargs):
-    """Resolve the run, write its YAML, and describe the three nodes that read it."""
+    """Resolve the run, write its YAML, and turn the launch plan of its nodes into actions."""
     from lubrig_ros.app.discovery import discovery_environment
-    from lubrig_ros.cli.rig import CLEAN_EXITS, READY_LINES, resolve_run, write_run_config
+    from lubrig_ros.app.rig_plan import CLEAN_EXITS, READY_LINES, rig_plan
+    from lubrig_ros.cli.rig import resolve_run, write_run_config
 
     value = {name: _typed(name, LaunchConfiguration(name).perform(context)) for name in ARGUMENTS}
     config = resolve_run(
@@ -139,54 +175,47 @@ def _nodes(context, *_args, **_kwargs):
     changed = {k: v for k, v in discovery.items() if os.environ.get(k) != v}
     run_dir = Path(value["run_dir"] or Path.home() / ".ros" / "lubrig" / time.strftime("%Y%m%d_%H%M%S"))
     run_dir.mkdir(parents=True, exist_ok=True)
-    run_config = str(write_run_config(config, run_dir))
-    params_file = os.path.join(get_package_share_directory("lubrig_ros"), "config", "nodes.yaml")
-    mode = value["mode"]
-    per_node = {
-        "plant": {
-            "config_file": run_config,
-            "mode": mode,
-            # sim: /clock has one owner per domain; publish_clock:=false for a second rig
-            "publish_clock": mode == "sim" and bool(value["publish_clock"]),
-            "exit_when_complete": True,  # the plant ends at the end of its run, and so the launch
-        },
-        "belt_drive": {"config_file": run_config, "mode": mode},
-        "analysis": {"config_file": run_config},
-    }
-    for params in per_node.values():  # sim: every node on the rig's ROS clock, as `lubrig rig`
-        params["use_sim_time"] = mode == "sim"
+    params_file = Path(get_package_share_directory("lubrig_ros")) / "config" / "nodes.yaml"
+    plan = rig_plan(
+        write_run_config(config, run_dir),
+        params_file,
+        value["mode"],
+        value["namespace"],
+        publish_clock=bool(value["publish_clock"]),  # sim: one /clock owner per domain
+        plant_extra={"exit_when_complete": True},  # the plant ends at the end of its run, and so the launch
+    )
     nodes = {
-        name: Node(
-            package="lubrig_ros",
-            executable=name,
-            name=name,
-            namespace=value["namespace"],
-            parameters=[params_file, params],
-            output="screen",
-            additional_env=changed,
-        )
-        for name, params in per_node.items()
+        name: Node(**kwargs, output="screen", additional_env=changed)
+        for name, kwargs in node_actions(plan).items()
     }
     # one node gone (end of run, crash, bad parameter) ends the rig: no node runs on alone
     handlers = [
         RegisterEventHandler(OnProcessExit(target_action=node, on_exit=_on_exit(name, CLEAN_EXITS)))
         for name, node in nodes.items()
     ]
-    # the plant last, once the others have printed their start lines: realtime, its deadlines start
-    # with it (their CPU-bound start-up made its first ticks late); sim, a short run may be over
-    # before the analysis is up (it would miss the run, and the SIGINT at the end would find it
-    # still importing)
-    others = {name: READY_LINES[name] for name in ("belt_drive", "analysis")}
-    seen = _when_ready(others, [nodes["plant"]])
-    handlers += [
-        RegisterEventHandler(OnProcessIO(target_action=nodes[n], on_stdout=seen(n), on_stderr=seen(n)))
-        for n in others
-    ]
-    started: list = [nodes[name] for name in others]
+    # a node with `after` starts once those have printed their start lines (the plan says why)
+    started: list = []
+    for launch in plan.nodes:
+        if not launch.after:
+            started.append(nodes[launch.name])
+            continue
+        others = {name: READY_LINES[name] for name in launch.after}
+        seen = _when_ready(others, [nodes[launch.name]])
+        handlers += [
+            RegisterEventHandler(OnProcessIO(target_action=nodes[n], on_stdout=seen(n), on_stderr=seen(n)))
+            for n in others
+        ]
     if value["view"]:
-        started.append(Node(package="lubrig_ros", executable="view", name="view",
-                            namespace=value["namespace"],  # namespace: launch's __ns
-                            output="screen", additional_env=changed))
+        started.append(
+            Node(
+                package="lubrig_ros",
+                executable="view",
+                name="view",
+                namespace=value["namespace"],  # namespace: launch's __ns
+                output="screen",
+                additional_env=changed,
+            )
+        )
     return [*handlers, *started]
 
 

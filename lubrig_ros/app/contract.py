@@ -585,6 +585,10 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
            "software in the loop; wall-clock modes: only while the topic has a subscriber (about "
            "80 us per sample for the plant's loop)"),
         WAIT_FOR_SUBSCRIBER,
+        _p("band_source", "string", "",
+           "the declared band source: node name (in the plant's namespace) or fully qualified name "
+           "of the one publisher of band input (the launchers: belt_drive); any other publisher "
+           "is reported (band sources WARN, naming it); empty: any one publisher"),
         REALTIME_PRIORITY,
         _p("diagnostics_period", "double", 1.0, "time between /diagnostics", unit="s", low=0.0,
            low_open=True),

@@ -2,14 +2,21 @@
 
 Resolves the run once (case | config file | default, plus --duration / --convention) and writes
 it to DIR/run_config.yaml; every node gets that file as its `config_file` parameter (nothing is
-rebuilt from a case number). Starts the recorder (`recorder -o DIR/bag --config
-DIR/run_config.yaml [--use-sim-time]`, sim mode logs rig time) and waits until it is subscribed,
-then belt_drive, plant and analysis on the current ROS_DOMAIN_ID, all in the rig namespace
-(`--namespace NS`, default /lubrig: the nodes get `-r __ns:=NS`, the recorder `--namespace
-NS`); waits until the plant reports
-the run complete (sim) or the wall duration has passed (realtime), stops the nodes and then the
-recorder with SIGINT (SIGTERM after a grace period) so that the bag is finalized, and finally
-writes the report of the bag into DIR/report (`--no-report` skips it) and prints its location.
+rebuilt from a case number). The nodes, their parameters and their start order are the launch
+plan (app/rig_plan.py), which launch/rig.launch.py turns into launch_ros actions as well.
+
+Before anything starts, the launcher looks at the ROS graph (cli/rig_ros.py): a namespace that
+another rig holds on this ROS_DOMAIN_ID is refused (exit 2, one line naming that rig's nodes).
+Then it starts the recorder (`recorder -o DIR/bag --config DIR/run_config.yaml
+[--use-sim-time]`, sim mode logs rig time) and belt_drive, plant and analysis in the rig
+namespace (`--namespace NS`, default /lubrig: the nodes get `-r __ns:=NS`, the recorder
+`--namespace NS`); waits until the plant reports the run complete (sim) or the wall duration has
+passed (realtime), stops the nodes and then the recorder with SIGINT (SIGTERM, then SIGKILL after
+bounded grace periods, each said) so that the bag is finalized, and finally writes the report of
+the bag into DIR/report (`--no-report` skips it) and prints its location.
+
+A process that fails — in start-up, the run or shutdown — is named with how it ended and the
+first error line of its log (cli/rig_supervisor.py); `lubrig rig` then exits 1 (EXIT_FAILED).
 
 Sim mode: belt_drive streams band blocks paced on <ns>/flow_progress (app/flow.py); when recording,
 the recorder's participant (`<ns>/lubrig_recorder`, contract.RECORDER_PARTICIPANT) is one of
@@ -24,13 +31,14 @@ without /clock, and nothing paces on /clock (docs/nodes.md, "Sim time").
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import shutil
 import signal
-import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from ..app.contract import (
@@ -43,38 +51,35 @@ from ..app.contract import (
     validate_namespace,
 )
 from ..app.discovery import discovery_environment
-from ..app.lifetime import die_with_parent
+from ..app.rig_plan import CLEAN_EXITS, READY_LINES, ParameterValue, RigPlan, rig_plan
 from ..app.rundir import prepare_output_dir
 from ..app.selection import RunSelection
 from ..core.params import CONVENTIONS, ParameterError
 from ..core.presets import RunConfig, config_dir
 from .main import CommandError
 from .progress import Progress
+from .rig_ros import STALL_GIVE_UP_S, namespace_taken, wait_complete
+from .rig_supervisor import GRACE_S, Exit, RigProcessError, Supervisor, stop_all
 
-NODES = ("plant", "belt_drive", "analysis")
-GRACE_S = 10.0
+__all__ = [  # what tests and launch/rig.launch.py take from here
+    "CLEAN_EXITS",
+    "READY_LINES",
+    "STALL_GIVE_UP_S",
+    "resolve_run",
+    "select_config",
+    "stop_all",
+    "write_run_config",
+]
+
 #: The recorder, stopped last, may take the plant's announced tail (5 s), drain its workers and
 #: finalize the bag: on a loaded machine that took longer than GRACE_S (seen: SIGTERM just after
 #: it had written every sample). A guard against a hang, not an expected duration.
 RECORDER_GRACE_S = 40.0
 #: Recorder worker processes in sim mode (recorder_command).
 SIM_RECORDER_WORKERS = 1
-#: Sim: end the run (non-zero) once the plant has reported it stalled this long without a break
-#: (a run that cannot progress; a loaded machine's pauses of a few seconds are not one).
-STALL_GIVE_UP_S = 15.0
-RECORDER_READY_S = 60.0
-#: Exit statuses of a node that ended cleanly: 0, or killed by the SIGINT that stops it while it is
-#: still importing (nodes/entry.py); launch/rig.launch.py uses the same rule.
-CLEAN_EXITS = (0, -signal.SIGINT)
-
-
-def _die_with_launcher() -> None:
-    """In a node process before exec: SIGTERM when the launcher ends, however it ends.
-
-    SIGTERM, not SIGKILL: the node stops as on `lubrig rig`'s own stop (the recorder finalizes
-    the bag); the recorder's helpers are killed with the recorder (nodes/recorder_forkserver.py).
-    """
-    die_with_parent(signal.SIGTERM)
+#: Exit status of `lubrig rig` when a process of the rig failed (as ros2 launch's for a node).
+EXIT_FAILED = 1
+RUN_CONFIG_FILE = "run_config.yaml"
 
 
 def _executable(name: str) -> str:
@@ -88,22 +93,15 @@ def _executable(name: str) -> str:
     return found
 
 
-RECORDER_NODE_PREFIX = "lubrig_recorder"  # the recorder's worker nodes: <namespace>/lubrig_recorder_w<i>
-
-
 def recorder_reports_progress() -> bool:
     """True when the installed recorder publishes flow_progress as RECORDER_PARTICIPANT.
 
-    The recorder side of issue 12 (nodes/recorder.py) declares it with a module constant
-    FLOW_PARTICIPANT; a recorder without it never reports, and pacing on it would never start.
+    The recorder declares it with a module constant FLOW_PARTICIPANT; a recorder without it
+    never reports, and pacing on it would never start.
     """
     from ..nodes import recorder
 
     return getattr(recorder, "FLOW_PARTICIPANT", None) == RECORDER_PARTICIPANT
-
-
-
-RUN_CONFIG_FILE = "run_config.yaml"
 
 
 def resolve_run(
@@ -141,133 +139,6 @@ def select_config(args: argparse.Namespace) -> RunConfig:
         raise CommandError(str(exc)) from None
 
 
-def _ros_args(params: dict[str, object], params_file: Path, namespace: str = DEFAULT_NAMESPACE) -> list[str]:
-    args = ["--ros-args", "-r", f"__ns:={namespace}", "--params-file", str(params_file)]
-    for key, value in params.items():
-        args += ["-p", f"{key}:={value}"]
-    return args
-
-
-def _wait_complete(
-    deadline: float,
-    procs: dict[str, subprocess.Popen],
-    namespace: str = DEFAULT_NAMESPACE,
-    progress: Progress | None = None,
-    stall: list[str] | None = None,
-) -> bool:
-    """Sim: wait for <ns>/run_complete = true (latched) from the plant (rig time from /clock).
-
-    Gives up early when the plant has reported its run stalled (timing status ERROR) for
-    STALL_GIVE_UP_S without a break; the plant's line is appended to `stall`.
-    """
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.node import Node
-    from std_msgs.msg import Bool
-
-    from ..app import contract
-    from ..nodes.interfaces import qos_profile
-
-    spec = contract.topic("run_complete").resolved(namespace)
-    context = Context()
-    rclpy.init(context=context)
-    node = Node("lubrig_rig_launcher", context=context)
-    done = []
-    node.create_subscription(
-        Bool, spec.name, lambda m: done.append(True) if m.data else None, qos_profile(spec.qos)
-    )
-    if progress is not None and progress.enabled:  # rig time on a terminal: the plant's /clock
-        from rosgraph_msgs.msg import Clock
-
-        node.create_subscription(
-            Clock, "/clock", lambda m: progress.update(m.clock.sec + 1e-9 * m.clock.nanosec),
-            qos_profile(contract.topic("/clock").qos),
-        )
-    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-
-    timing = f"{contract.resolve(namespace, 'plant')}: timing"
-    stalled_since: list[float] = []
-    stall_text: list[str] = []
-
-    def on_diagnostics(array: DiagnosticArray) -> None:
-        for status in array.status:
-            if status.name != timing:
-                continue
-            if status.level == DiagnosticStatus.ERROR and status.message.startswith("stalled"):
-                stalled_since[:] = stalled_since or [time.monotonic()]
-                stall_text[:] = [status.message]
-            else:
-                stalled_since.clear()
-
-    node.create_subscription(
-        DiagnosticArray, "/diagnostics", on_diagnostics, qos_profile(contract.topic("/diagnostics").qos)
-    )
-    from rclpy.executors import SingleThreadedExecutor
-
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    try:
-        while not done and time.monotonic() < deadline:
-            if any(p.poll() is not None for p in procs.values()):
-                break
-            if stalled_since and time.monotonic() - stalled_since[0] >= STALL_GIVE_UP_S:
-                if stall is not None:
-                    stall.append(f"{timing}: {stall_text[0]}")
-                break
-            try:
-                executor.spin_once(timeout_sec=0.1)
-            except RuntimeError:
-                # a Ctrl-C: rclpy's signal handling shut the context down under a take ("Unable
-                # to convert call argument"), which is the interrupt, not a failure; the
-                # shutdown may still be in flight for a moment
-                end = time.monotonic() + 0.5
-                while context.ok() and time.monotonic() < end:
-                    time.sleep(0.01)
-                if context.ok():
-                    raise
-                raise KeyboardInterrupt from None
-    finally:
-        executor.shutdown(timeout_sec=1.0)  # before the context: no Executor.__del__ traceback
-        node.destroy_node()
-        context.try_shutdown()
-    return bool(done)
-
-
-def _dump_stacks(name: str, proc: subprocess.Popen, grace: float) -> None:
-    """A node that ignored SIGINT: SIGUSR1 makes it write its threads' stacks to its log."""
-    print(
-        f"lubrig rig: {name} did not stop within {grace:g} s of SIGINT; its Python stacks go to "
-        "its log (SIGUSR1), then SIGTERM",
-        file=sys.stderr,
-    )
-    try:
-        proc.send_signal(signal.SIGUSR1)  # nodes.entry registers faulthandler for it
-        proc.wait(timeout=0.5)
-    except (subprocess.TimeoutExpired, ProcessLookupError):
-        pass
-
-
-def stop_all(procs: dict[str, subprocess.Popen], grace: float = GRACE_S) -> dict[str, int]:
-    """SIGINT every running process, wait, then SIGTERM (and SIGKILL) what is left."""
-    for proc in procs.values():
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-    codes: dict[str, int] = {}
-    end = time.monotonic() + grace
-    for name, proc in procs.items():
-        try:
-            codes[name] = proc.wait(timeout=max(0.1, end - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            _dump_stacks(name, proc, grace)
-            proc.terminate()
-            try:
-                codes[name] = proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                codes[name] = proc.wait()
-    return codes
-
-
 def recorder_command(
     bag_dir: Path, run_config: Path, mode: str, namespace: str = DEFAULT_NAMESPACE
 ) -> list[str]:
@@ -295,184 +166,187 @@ def _set_aside(bag_dir: Path) -> None:
     print(f"lubrig rig: previous bag moved to {previous}")
 
 
-#: What each process prints once it is set up (its start line), for `_wait_ready`.
-READY_LINES = {
-    "recorder": "recorder: recording",
-    "view": "view: serving",
-    "belt_drive": "belt_drive: mode=",
-    "analysis": "analysis: window",
-    "plant": "plant: mode=",
-    "plant_loop": "subscribed; the loop starts",  # a realtime plant waiting for the recorder
-}
+def _plant_options(args: argparse.Namespace, mode: str) -> dict[str, ParameterValue]:
+    """--max-lag / --lag-policy as plant parameters (realtime only: CommandError in sim)."""
+    extra: dict[str, ParameterValue] = {}
+    for option in ("max_lag", "lag_policy"):
+        value = getattr(args, option, None)
+        if value is not None:
+            if mode == "sim":
+                raise CommandError(f"--{option.replace('_', '-')} applies to --mode realtime only")
+            extra[option] = value
+    return extra
 
 
-def _wait_ready(name: str, proc: subprocess.Popen, log: Path, limit: float = RECORDER_READY_S) -> None:
-    """Wait until process `name` prints its READY_LINES line; CommandError naming it if it exits."""
-    end = time.monotonic() + limit
-    while READY_LINES[name] not in log.read_text(errors="replace"):
-        if proc.poll() is not None:
-            lines = log.read_text(errors="replace").strip().splitlines()
-            errors = [line for line in lines if "ERROR" in line or "FATAL" in line or "error" in line]
-            why = (errors or lines or ["no output"])[0]
-            raise CommandError(f"{name} exited with status {proc.returncode} during start-up: {why}")
-        if time.monotonic() > end:
-            raise CommandError(f"{name} not ready after {limit:g} s; see {log}")
-        time.sleep(0.05)
+def _start(sup: Supervisor, plan: RigPlan, args: argparse.Namespace, bag: Path) -> None:
+    """Start-up: the recorder, the view, the plan's nodes in order; every start line awaited."""
+    sim = plan.mode == "sim"
+    if plan.recorded:
+        sup.start("recorder", recorder_command(bag / "bag", plan.run_config, plan.mode, plan.namespace))
+        if not sim:  # wall clock: nothing paces the nodes on the recorder, so it comes first
+            sup.wait_ready("recorder")
+    if args.view is not None:  # live view for Foxglove (lubrig view), up before the nodes publish
+        sup.start("view", [_executable("view"), "--namespace", plan.namespace, "--port", str(args.view)])
+        sup.wait_ready("view")
+        print(f"lubrig rig: live view on ws://127.0.0.1:{args.view} (Foxglove; log {sup.log('view')})")
+    for node in plan.nodes:
+        for other in node.after:
+            sup.wait_ready(other)
+        sup.start(node.name, [_executable(node.name), *plan.ros_args(node.name)])
+    if plan.recorded and sim:
+        # sim: plant and belt_drive wait for the recorder's subscriptions and flow_progress, so
+        # it starts beside them (start-up is CPU-bound: imports of four processes on 2 cores)
+        sup.wait_ready("recorder")
+    sup.wait_ready("plant")  # wall clock: the run's duration counts from the plant's start line
+    if plan.recorded and not sim:
+        sup.wait_ready("plant_loop")
+
+
+def _allowed(mode: str) -> Callable[[Exit], bool]:
+    """Which ends of the plant are the run's verdict, not a failure of a process."""
+
+    def allowed(gone: Exit) -> bool:
+        if gone.name != "plant":
+            return False
+        if mode == "sim":
+            return gone.status == EXIT_INTEGRATION_FAILED
+        return gone.status == EXIT_REAL_TIME_NOT_HELD
+
+    return allowed
+
+
+def _run_phase(sup: Supervisor, plan: RigPlan, config: RunConfig, timeout: float | None) -> None:
+    """Wait for the end of the run (sim: run_complete; realtime: the wall duration)."""
+    allowed = _allowed(plan.mode)
+    bar = Progress("lubrig rig", config.duration)
+    start = time.monotonic()
+    if plan.mode == "sim":
+        limit = timeout if timeout else max(60.0, 10.0 * config.duration)
+        stall: list[str] = []
+        complete = wait_complete(start + limit, sup.procs, plan.namespace, bar, stall)
+        bar.finish()
+        if complete:
+            return
+        if stall:
+            raise CommandError(f"sim run stalled for {STALL_GIVE_UP_S:g} s: {stall[0]}; see {sup.logs}")
+        sup.check(allowed)
+        if not sup.ended():
+            raise RigProcessError(f"sim run did not complete within {limit:g} s (--timeout); see {sup.logs}")
+        return
+    end = start + config.duration
+    while time.monotonic() < end and not sup.ended():
+        time.sleep(0.1)
+        bar.update(time.monotonic() - start)
+    bar.finish()
+    sup.check(allowed)
+
+
+def _stop(sup: Supervisor) -> None:
+    """Shutdown: nodes first, the recorder last (it has everything before it closes the bag).
+
+    A second Ctrl-C (a terminal's reaches the whole group) does not cut the stop short.
+    """
+    sup.phase = "shutdown"
+    previous = None
+    with contextlib.suppress(ValueError):  # not the main thread (in-process callers): no change
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        sup.stop([n for n in sup.procs if n != "recorder"], GRACE_S)
+        sup.stop(["recorder"], RECORDER_GRACE_S)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Start, wait, stop, report."""
+    """Check the namespace, start, wait, stop, report."""
     config = select_config(args)
     namespace = getattr(args, "namespace", DEFAULT_NAMESPACE)
     try:
         validate_namespace(namespace, "--namespace")
+        discovery = discovery_environment(os.environ, args.network)  # this host only unless asked
     except ParameterError as exc:
         raise CommandError(str(exc)) from None
     mode = args.mode
+    plant_extra = _plant_options(args, mode)
+    env = discovery.env
+    env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
+    # the launcher's own participant (graph check, run_complete) with the nodes' transports and
+    # discovery range: with rclpy's defaults it found the latched run_complete seconds late
+    os.environ.update({k: v for k, v in env.items() if os.environ.get(k) != v})
+    taken = namespace_taken(namespace)  # before anything is written or started
+    if taken:
+        raise CommandError(taken)
     bag = prepare_output_dir(Path(args.run_dir), args.force, "--run-dir").resolve()
     bag.mkdir(parents=True, exist_ok=True)
     logs = bag / "logs"
     logs.mkdir(exist_ok=True)
     run_config = write_run_config(config, bag)
-    params_file = config_dir() / "nodes.yaml"
-    # every node reads the resolved run (duration, convention, rig, band) from the one file
-    selection: dict[str, object] = {"config_file": str(run_config)}
-    per_node: dict[str, dict[str, object]] = {
-        "plant": dict(selection, mode=mode),
-        "belt_drive": dict(selection, mode=mode),
-        "analysis": dict(selection),
-    }
-    for option, name in (("max_lag", "max_lag"), ("lag_policy", "lag_policy")):
-        value = getattr(args, option, None)
-        if value is not None:
-            if mode == "sim":
-                raise CommandError(f"--{option.replace('_', '-')} applies to --mode realtime only")
-            per_node["plant"][name] = value
-    clock = mode == "sim" and not getattr(args, "no_clock", False)
-    if clock:
-        per_node["plant"]["publish_clock"] = True
-    if mode == "sim":  # every node on the rig's ROS clock (/clock; stamps from the rig's own time)
-        for params in per_node.values():
-            params["use_sim_time"] = True
-    procs: dict[str, subprocess.Popen] = {}
-    discovery = discovery_environment(os.environ, args.network)  # this host only unless asked
-    env = discovery.env
-    env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
-    # the launcher's own participant (it waits for run_complete) with the nodes' transports and
-    # discovery range: with rclpy's defaults it found the latched run_complete seconds late
-    os.environ.update({k: v for k, v in env.items() if os.environ.get(k) != v})
     with_recorder = not args.no_recorder
+    plan = rig_plan(
+        run_config,
+        config_dir() / "nodes.yaml",
+        mode,
+        namespace,
+        recorded=with_recorder,
+        recorder_reports_progress=not with_recorder or recorder_reports_progress(),
+        publish_clock=not getattr(args, "no_clock", False),
+        plant_extra=plant_extra,
+    )
     if with_recorder:
-        # sim: nothing flows before the recorder has subscribed to every output (no lost sample),
-        # and belt_drive paces on the recorder's flow_progress as well as the plant's
-        per_node["plant"]["wait_for_subscriber"] = RECORDER_NODE_PREFIX  # nothing unrecorded
-        if mode == "sim":
-            per_node["belt_drive"]["wait_for_subscriber"] = RECORDER_NODE_PREFIX
-            if recorder_reports_progress():
-                per_node["belt_drive"]["required_consumers"] = f"['{RECORDER_PARTICIPANT}']"
         _set_aside(bag / "bag")
+    sup = Supervisor(logs, env)
+    failure = ""
+    wall = math.nan  # interrupted: no run time to report, exit status 130
     try:
-        if with_recorder:
-            with open(logs / "recorder.log", "w") as log:
-                procs["recorder"] = subprocess.Popen(
-                    recorder_command(bag / "bag", run_config, mode, namespace),
-                    env=env,
-                    stdout=log,
-                    stderr=subprocess.STDOUT,
-                    preexec_fn=_die_with_launcher,  # a launcher killed by SIGKILL takes its nodes with it
-                )
-            if mode != "sim":  # realtime: nothing paces the nodes on the recorder, so it comes first
-                _wait_ready("recorder", procs["recorder"], logs / "recorder.log")
-        if args.view is not None:  # live view for Foxglove (lubrig view), up before the nodes publish
-            with open(logs / "view.log", "w") as log:
-                procs["view"] = subprocess.Popen(
-                    [_executable("view"), "--namespace", namespace, "--port", str(args.view)], env=env,
-                    stdout=log, stderr=subprocess.STDOUT, preexec_fn=_die_with_launcher,
-                )
-            _wait_ready("view", procs["view"], logs / "view.log")
-            print(f"lubrig rig: live view on ws://127.0.0.1:{args.view} (Foxglove; log {logs / 'view.log'})")
-        # wall clock: the plant's deadlines start with it, so it starts last, once the others have
-        # done their CPU-bound start-up (imports of several processes on 2 cores would make its
-        # first ticks late); sim: all at once (nothing flows before every participant reports)
-        order = NODES if mode == "sim" else ("belt_drive", "analysis", "plant")
-        for name in order:
-            if name == "plant" and mode != "sim":
-                for other in ("belt_drive", "analysis"):
-                    _wait_ready(other, procs[other], logs / f"{other}.log")
-            with open(logs / f"{name}.log", "w") as log:
-                procs[name] = subprocess.Popen(
-                    [_executable(name), *_ros_args(per_node[name], params_file, namespace)],
-                    env=env,
-                    stdout=log,
-                    stderr=subprocess.STDOUT,
-                    preexec_fn=_die_with_launcher,
-                )
-        if with_recorder and mode == "sim":
-            # sim: plant and belt_drive wait for the recorder's subscriptions and flow_progress, so
-            # it starts beside them (start-up is CPU-bound: imports of four processes on 2 cores)
-            _wait_ready("recorder", procs["recorder"], logs / "recorder.log")
-        if mode != "sim":  # the run's wall duration counts from the plant's first sample
-            _wait_ready("plant", procs["plant"], logs / "plant.log")
-            if with_recorder:
-                _wait_ready("plant_loop", procs["plant"], logs / "plant.log")
+        _start(sup, plan, args, bag)
         domain = env.get("ROS_DOMAIN_ID", "0")
         print(
             f"lubrig rig: {config.name} ({mode}, {config.duration:g} s) on ROS_DOMAIN_ID {domain}, "
             f"namespace {namespace}; {discovery.isolation}"
-            + (", publishing /clock (one owner per domain: --no-clock for a second rig)" if clock else "")
+            + (
+                ", publishing /clock (one owner per domain: --no-clock for a second rig)"
+                if plan.publish_clock
+                else ""
+            )
         )
+        sup.phase = "the run"
         start = time.monotonic()
-        if mode == "sim":
-            limit = args.timeout if args.timeout else max(60.0, 10.0 * config.duration)
-            bar = Progress("lubrig rig", config.duration)
-            stall: list[str] = []
-            complete = _wait_complete(start + limit, procs, namespace, bar, stall)
-            bar.finish()
-            if not complete and stall:
-                raise CommandError(f"sim run stalled for {STALL_GIVE_UP_S:g} s: {stall[0]}; see {logs}")
-            failed = not complete and procs["plant"].poll() == EXIT_INTEGRATION_FAILED
-            if not complete and not failed:
-                dead = [n for n, p in procs.items() if p.poll() is not None]
-                why = f"process(es) {dead} exited" if dead else f"timeout after {limit:g} s"
-                raise CommandError(f"sim run did not complete ({why}); see {logs}")
-        else:
-            end = start + config.duration
-            bar = Progress("lubrig rig", config.duration)
-            while time.monotonic() < end and all(p.poll() is None for p in procs.values()):
-                time.sleep(0.1)
-                bar.update(time.monotonic() - start)
-            bar.finish()
+        _run_phase(sup, plan, config, args.timeout)
         wall = time.monotonic() - start
+    except RigProcessError as exc:
+        failure = str(exc)
     except KeyboardInterrupt:
         print("lubrig rig: interrupted, stopping the nodes", file=sys.stderr)
-        wall = math.nan  # interrupted: no run time to report, exit status 130
     finally:
-        # nodes first, the recorder last so that it has everything before it closes the bag
-        ordered = {n: p for n, p in procs.items() if n != "recorder"}
-        codes = stop_all(ordered)
-        if "recorder" in procs:
-            codes |= stop_all({"recorder": procs["recorder"]}, RECORDER_GRACE_S)
-    bad = {n: c for n, c in codes.items() if c not in CLEAN_EXITS}
-    late = bad.get("plant") == EXIT_REAL_TIME_NOT_HELD and mode != "sim"
-    failed = bad.get("plant") == EXIT_INTEGRATION_FAILED and mode == "sim"
-    if late or failed:
-        del bad["plant"]
-    if math.isnan(wall):
-        print(f"lubrig rig: interrupted before the run ended; what was recorded is in {bag}")
+        _stop(sup)
+    return _finish(sup, plan, args, bag, wall, failure)
+
+
+def _finish(
+    sup: Supervisor, plan: RigPlan, args: argparse.Namespace, bag: Path, wall: float, failure: str
+) -> int:
+    """Say where the results are and how the run ended; the exit status."""
+    logs = sup.logs
+    plant = sup.exits.get("plant")
+    late = plant is not None and plant.status == EXIT_REAL_TIME_NOT_HELD and plan.mode != "sim"
+    failed = plant is not None and plant.status == EXIT_INTEGRATION_FAILED and plan.mode == "sim"
+    failures = [failure] if failure else sup.failures_at_shutdown(_allowed(plan.mode))
+    if failures or math.isnan(wall):
+        ended = "failed" if failures else "interrupted"
+        print(f"lubrig rig: {ended} before the run ended; what was recorded is in {bag}")
     else:
         print(f"lubrig rig: run finished in {wall:.1f} s wall; results in {bag}")
-    print(f"  run configuration: {run_config}")
+    print(f"  run configuration: {plan.run_config}")
     print(f"  node logs:         {logs}")
-    if with_recorder:
-        print(f"  bag:               {bag / 'bag'}")
-    else:
-        print("  (--no-recorder: nothing recorded)")
-    if bad:
-        raise CommandError(f"node(s) exited with errors {bad}; see {logs}")
+    print(f"  bag:               {bag / 'bag'}" if plan.recorded else "  (--no-recorder: nothing recorded)")
+    if failures:
+        print(f"lubrig rig: error: {'; '.join(failures)}", file=sys.stderr)
+        return EXIT_FAILED
     if failed:  # what was published before the failed sample is recorded; no report of a broken run
         print(f"lubrig rig: error: {_plant_verdict(logs / 'plant.log', 'the run ends')}", file=sys.stderr)
         return EXIT_INTEGRATION_FAILED
-    if with_recorder and not args.no_report and not math.isnan(wall):
+    if plan.recorded and not args.no_report and not math.isnan(wall):
         from ..report import write_report
 
         page = write_report(bag / "bag", bag / "report", force=True)  # inside the checked run folder
@@ -527,23 +401,32 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--mode", choices=("sim", "realtime"), default="sim")
     lag = parameter("plant", "max_lag")
     parser.add_argument(
-        "--max-lag", type=_positive, metavar="S",
+        "--max-lag",
+        type=_positive,
+        metavar="S",
         help=f"realtime: {lag.description} (default {lag.default:g} s; valid {lag.expected()})",
     )
     policy = parameter("plant", "lag_policy")
     parser.add_argument(
-        "--lag-policy", choices=policy.choices,
+        "--lag-policy",
+        choices=policy.choices,
         help=f"realtime: what the plant does beyond --max-lag (default {policy.default}); either way "
         f"lubrig rig ends with status {EXIT_REAL_TIME_NOT_HELD} naming the cause",
     )
     parser.add_argument(
-        "--namespace", default=DEFAULT_NAMESPACE, metavar="NS",
+        "--namespace",
+        default=DEFAULT_NAMESPACE,
+        metavar="NS",
         help=f"ROS namespace of the rig's nodes, topics and services (default {DEFAULT_NAMESPACE})",
     )
     parser.add_argument("--convention", choices=CONVENTIONS, help="override the convention")
     parser.add_argument("--duration", type=_positive, metavar="S", help="run length in s")
     parser.add_argument(
-        "--run-dir", "--bag", dest="run_dir", required=True, metavar="DIR",
+        "--run-dir",
+        "--bag",
+        dest="run_dir",
+        required=True,
+        metavar="DIR",
         help="run folder: run_config.yaml, logs/, the bag in DIR/bag, the report in DIR/report "
         "(--bag is the old name); an existing non-empty DIR is refused unless --force",
     )
@@ -557,12 +440,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--no-recorder", action="store_true", help="do not start the recorder")
     parser.add_argument(
-        "--no-clock", action="store_true",
+        "--no-clock",
+        action="store_true",
         help="sim: the plant does not publish /clock (one owner per ROS domain: use it for a "
         "second rig on the same domain)",
     )
     parser.add_argument("--no-report", action="store_true", help="do not write DIR/report")
-    parser.add_argument("--view", nargs="?", type=int, const=8765, metavar="PORT",
-                        help="also serve the run to Foxglove on ws://127.0.0.1:PORT (default 8765; "
-                        "lubrig view)")
+    parser.add_argument(
+        "--view",
+        nargs="?",
+        type=int,
+        const=8765,
+        metavar="PORT",
+        help="also serve the run to Foxglove on ws://127.0.0.1:PORT (default 8765; lubrig view)",
+    )
     parser.set_defaults(func=run)

@@ -7,6 +7,7 @@ the node is started with `--ros-args -r __ns:=/other`), except /clock and /diagn
 
 from __future__ import annotations
 
+import array
 import contextlib
 import gc
 import math
@@ -17,10 +18,12 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
+from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
@@ -261,8 +264,11 @@ def enter_realtime(priority: int, node: Node) -> bool:
     held = hold_cpu_wakeup_latency()
     node.get_logger().info(
         f"realtime_priority={priority}: loop thread under SCHED_FIFO; "
-        + ("CPU wake-up latency 0 requested (/dev/cpu_dma_latency)" if held else
-           "no CPU wake-up latency request (/dev/cpu_dma_latency not writable)")
+        + (
+            "CPU wake-up latency 0 requested (/dev/cpu_dma_latency)"
+            if held
+            else "no CPU wake-up latency request (/dev/cpu_dma_latency not writable)"
+        )
     )
     gc.freeze()  # objects made so far are never scanned again: shorter collector pauses
     return True
@@ -302,6 +308,44 @@ def subscribed_by(node: Node, topics: Iterable[str], prefix: str) -> bool:
         any(info.node_name.startswith(prefix) for info in node.get_subscriptions_info_by_topic(t))
         for t in topics
     )
+
+
+def doubles(values: Any) -> array.array:
+    """A float64 array as the array.array('d') rclpy takes for float64[] without a per-item check."""
+    out = array.array("d")
+    out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return out
+
+
+def log_at(node: Node, level: str, text: str) -> None:
+    """Log text at level "error" | "warning" | anything else: info (a session's log callback).
+
+    One call site per severity: rclpy refuses a call site whose severity changes.
+    """
+    logger = node.get_logger()
+    if level == "error":
+        logger.error(text)
+    elif level == "warning":
+        logger.warning(text)
+    else:
+        logger.info(text)
+
+
+def end_when_acked(publishers: list[Any], wait: float) -> None:
+    """End the node as on a Ctrl-C (spin_node, its exit status) once readers have the last samples.
+
+    The samples left at publish; the writers stay for a retransmit until the readers acknowledge
+    them, which RTPS readers do in answer to a writer heartbeat (seen: often not within 1 s, so
+    the node usually ends `wait` s after the run). Polled without waiting: a waiting call keeps
+    the GIL from the node's other threads for its whole timeout.
+    """
+    pending = list(publishers)
+    end = time.monotonic() + wait
+    with contextlib.suppress(Exception):  # a stop meanwhile: the context is gone
+        while pending and time.monotonic() < end:
+            pending = [p for p in pending if not p.wait_for_all_acked(Duration(seconds=0))]
+            time.sleep(0.01)
+    os.kill(os.getpid(), signal.SIGINT)
 
 
 def steady_timer(node: Node, period: float, callback: Callable[[], None]) -> Any:

@@ -26,13 +26,14 @@ their rules live in app/plant_session.py (unit-tested without DDS):
 sample. A reset (<ns>/plant/reset) starts a new segment at t = 0 (stepped modes: its stamps and
 /clock go on from the old segment's end, never back) and reports it on flow_progress
 at once; <ns>/plant/pause pauses. Exit status 3 (EXIT_REAL_TIME_NOT_HELD) when a wall-clock run
-did not hold real time. Topics, QoS, parameters: app/contract.py.
+did not hold real time. Start-up: nothing runs for 1.5 s of discovery; another rig in the namespace
+ends the node (exit 2); band publishers besides `band_source` are WARNed (nodes/graph.py).
+Topics, QoS, parameters: app/contract.py.
 """
 
 from __future__ import annotations
 
-import array
-import contextlib
+import dataclasses
 import functools
 import os
 import signal
@@ -40,10 +41,8 @@ import sys
 import threading
 import time
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
@@ -53,6 +52,7 @@ from std_srvs.srv import SetBool, Trigger
 from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress, RigState, RigStateBlock
 
 from ..app import cdr, contract
+from ..app.plant_diagnostics import HARDWARE_ID
 from ..app.plant_output import BLOCK_FIELDS
 from ..app.plant_session import (
     PlantBlock,
@@ -67,6 +67,7 @@ from ..app.plant_session import (
 )
 from ..core.params import ParameterError
 from . import common
+from .graph import NamespaceGuard, await_subscriber, band_source_status
 from .interfaces import create_publisher, create_service, create_subscription, report_callers
 
 HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
@@ -79,13 +80,6 @@ AWAIT_PROGRESS_S = 5.0
 EXIT_REAL_TIME_NOT_HELD = contract.EXIT_REAL_TIME_NOT_HELD
 #: exit_when_complete: longest wait (s) for the readers of the outputs to acknowledge the last samples.
 ACK_WAIT_S = 1.0
-
-
-def _doubles(values: np.ndarray) -> array.array:
-    """A float64 array as the array.array('d') rclpy takes for float64[] without a per-item check."""
-    out = array.array("d")
-    out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
-    return out
 
 
 def _nothing(_sample: PlantSample) -> None:
@@ -108,6 +102,7 @@ class Plant(Node):
         self.mode = values["mode"]
         self.wall_clock = self.mode not in contract.STEPPED_MODES
         self.wait_for_subscriber = values["wait_for_subscriber"]
+        self.band_source = values["band_source"]
         self.scalar_topics = bool(values["scalar_topics"])
         self.publish_clock = bool(values["publish_clock"]) and self.mode == "sim"
         self.exit_when_complete = bool(values["exit_when_complete"])
@@ -125,11 +120,8 @@ class Plant(Node):
         # every reset (sample_index, the profile); the stamps and /clock go on from where the old
         # segment ended, so the ROS clock of a use_sim_time node never goes back (_on_reset).
         self._origin_ns = 0
-        settings = PlantSettings(
-            values["mode"], values["band_velocity_limit"], values["stale_timeout"],
-            values["tick_step_attempts"], values["lag_policy"], values["max_lag"],
-            values["output_block_length"],
-        )
+        # the session's settings are the parameters of the same names
+        settings = PlantSettings(**{f.name: values[f.name] for f in dataclasses.fields(PlantSettings)})
         self.participant = self.get_fully_qualified_name()
         self.pub_block = create_publisher(self, "state_block")
         self.pub_progress = create_publisher(self, "flow_progress")
@@ -137,7 +129,8 @@ class Plant(Node):
         self.pub_state = create_publisher(self, "state") if per_sample_state else None
         self.pub_scalars = (
             tuple(create_publisher(self, n) for n in ("displacement", "velocity", "friction_coefficient"))
-            if self.scalar_topics else ()
+            if self.scalar_topics
+            else ()
         )
         self.pub_clock = create_publisher(self, "/clock") if self.publish_clock else None
         self.pub_diag = create_publisher(self, "/diagnostics")
@@ -167,15 +160,21 @@ class Plant(Node):
             on_complete=self._on_complete,
             on_fault=self._on_fault,
             on_failure=self._on_failure,
-            log=self._log,
+            log=functools.partial(common.log_at, self),
         )
         self.add_on_set_parameters_callback(self._on_set_parameters)
         common.check_updates(self, contract.plant_parameters(law))
         self.pub_config.publish(String(data=self.session.config.to_yaml()))
         self.pub_complete.publish(Bool(data=False))
         # raw (serialized CDR) subscription: about 2x cheaper per message than a Float64 object
-        create_subscription(self, "band_velocity", self._on_band_raw, raw=True)
-        create_subscription(self, "band_velocity_block", self._on_band_block)
+        self._band_topics = [
+            create_subscription(self, n, cb, raw=n == "band_velocity").topic_name
+            for n, cb in (("band_velocity", self._on_band_raw), ("band_velocity_block", self._on_band_block))
+        ]
+        # nothing runs before this namespace is known to be this rig's (another rig's plant, or a
+        # publisher of the outputs, there: the node ends, exit status 2)
+        outputs = [self.pub_block, self.pub_state, self.pub_config, self.pub_complete, *self.pub_scalars]
+        self._clear = NamespaceGuard(self, [p.topic_name for p in outputs if p is not None]).clear
         self._heard_awaited = False  # wall clock: the awaited subscriber's flow_progress arrived
         if self.wall_clock and self.wait_for_subscriber:
             create_subscription(self, "flow_progress", self._on_progress)
@@ -219,16 +218,6 @@ class Plant(Node):
         name = str(msg.participant).rsplit("/", 1)[-1]
         if name.startswith(self.wait_for_subscriber):
             self._heard_awaited = True
-
-    def _log(self, level: str, text: str) -> None:
-        # one call site per severity: rclpy refuses a call site whose severity changes
-        logger = self.get_logger()
-        if level == "error":
-            logger.error(text)
-        elif level == "warning":
-            logger.warning(text)
-        else:
-            logger.info(text)
 
     def _config_values(self) -> dict[str, object]:
         return {name: self.get_parameter(name).value for name in self.config_names}
@@ -278,6 +267,8 @@ class Plant(Node):
         Lockstep: the initial state once announced, and the newest state again while unanswered.
         """
         if not self._announced:
+            if not self._clear.is_set():
+                return
             outputs = [self.pub_block, *self.pub_scalars]  # state is for rig software, not recorded
             if self.pub_clock is not None:
                 outputs.append(self.pub_clock)
@@ -357,8 +348,8 @@ class Plant(Node):
         msg.first_sample_index = block.first_sample_index
         msg.segment = block.segment
         for name in BLOCK_FIELDS:
-            setattr(msg, name, _doubles(getattr(block, name)))
-        msg.lateness = _doubles(block.lateness)
+            setattr(msg, name, common.doubles(getattr(block, name)))
+        msg.lateness = common.doubles(block.lateness)
         msg.skipped = block.skipped
         self.pub_block.publish(msg)
         if self.wall_clock and self.pub_state is not None:
@@ -393,18 +384,9 @@ class Plant(Node):
     def _exit_when_acked(self) -> None:
         if self._thread is not None:
             self._thread.join(timeout=1.0)
-        # the outputs (flow_progress only paces the band source: over with the run). Their samples
-        # left at publish; the writers stay for a retransmit until the readers acknowledge them,
-        # which RTPS readers do in answer to a writer heartbeat (seen: often not within ACK_WAIT_S,
-        # so the node usually ends ACK_WAIT_S after the run). Polled without waiting: a waiting call
-        # keeps the GIL from the node's other threads for its whole timeout.
-        pending = [p for p in (self.pub_block, self.pub_complete, self.pub_state) if p is not None]
-        end = time.monotonic() + ACK_WAIT_S
-        with contextlib.suppress(Exception):  # a stop meanwhile: the context is gone
-            while pending and time.monotonic() < end:
-                pending = [p for p in pending if not p.wait_for_all_acked(Duration(seconds=0))]
-                time.sleep(0.01)
-        os.kill(os.getpid(), signal.SIGINT)  # the node ends as on a Ctrl-C (spin_node), status 0
+        # the outputs (flow_progress only paces the band source: over with the run)
+        outputs = (self.pub_block, self.pub_complete, self.pub_state)
+        common.end_when_acked([p for p in outputs if p is not None], ACK_WAIT_S)
 
     def _publish_sample(self, s: PlantSample) -> None:
         """One RigState per sample (wall-clock modes: node clock now; lockstep: rig time); scalars."""
@@ -430,38 +412,25 @@ class Plant(Node):
         self._state_sent = time.monotonic()
 
     def _await_subscriber(self) -> bool:
-        """Wall-clock modes with wait_for_subscriber: hold the loop until that node takes state_block.
-
-        Its subscription in the graph and matched by this publisher: samples published before the
-        match (a recorder's first 0.1 s) would be lost. False if the node stops meanwhile.
-        """
-        prefix = self.wait_for_subscriber
-        if not prefix:
+        """Wall-clock modes with wait_for_subscriber: hold the loop until that node takes state_block."""
+        if not self.wait_for_subscriber:
             return True
-        self.get_logger().info(f"realtime: waiting for {prefix}* to subscribe to state_block")
-        topic = [self.pub_block.topic_name]
-        while not (self.pub_block.get_subscription_count() > 0 and common.subscribed_by(self, topic, prefix)):
-            if self._stop.wait(0.05):
-                return False
-        # the reader's side of the match: its node's flow_progress (the recorder reports once its
-        # state_block subscription has matched this publisher); a consumer that reports none
-        # gets AWAIT_PROGRESS_S of discovery
-        end = time.monotonic() + AWAIT_PROGRESS_S
-        while not self._heard_awaited and time.monotonic() < end:
-            if self._stop.wait(0.05):
-                return False
-        if not self._heard_awaited:
-            self.get_logger().warning(
-                f"realtime: no flow_progress from {prefix}* within {AWAIT_PROGRESS_S:g} s of its "
-                "subscription; starting (its first samples may be lost)"
-            )
-        self.get_logger().info(f"realtime: {prefix}* subscribed; the loop starts")
-        return True
+        return await_subscriber(
+            self,
+            self.pub_block,
+            self.wait_for_subscriber,
+            self._stop,
+            lambda: self._heard_awaited,
+            AWAIT_PROGRESS_S,
+        )
 
     def _realtime_loop(self) -> None:
         priority = int(self.get_parameter("realtime_priority").value)
         common.enter_realtime(priority, self)  # this thread only
         try:
+            while not self._clear.wait(0.05):
+                if self._stop.is_set():
+                    return
             if not self._await_subscriber():
                 return
             self.session.run_realtime(self._stop.is_set)
@@ -500,6 +469,7 @@ class Plant(Node):
         else:  # the rig's time, not the node clock (that is /clock's echo, or 0 with --no-clock)
             array.header.stamp.sec, array.header.stamp.nanosec = self._stamp(self._rig_now())
         statuses = self.session.diagnostics()
+        statuses.append(band_source_status(self, self._band_topics, self.band_source, HARDWARE_ID))
         array.status = [common.diagnostic_status(s, self) for s in statuses]
         self.pub_diag.publish(array)
         self._log_problems.log(statuses)

@@ -1,0 +1,157 @@
+"""`lubrig rig`'s own ROS participant: is the namespace free (before the nodes start), is the run over.
+
+`namespace_taken` looks at the graph for GRAPH_SETTLE_S (app/discovery.py): another rig's nodes
+in the namespace (plant, belt_drive, analysis, the recorder's), or any publisher of a topic in
+it, make the namespace taken, and `lubrig rig` refuses to start there (two rigs in one namespace
+would both run, each bag holding both rigs' samples). The plant checks again at its own start-up
+(nodes/graph.py), for a rig that was not yet discovered here.
+
+`wait_complete` (sim) waits for the plant's latched run_complete, gives up on a stalled run.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import time
+from typing import Any
+
+from ..app.contract import DEFAULT_NAMESPACE
+from ..app.discovery import GRAPH_SETTLE_S, fully_qualified, rig_occupants
+from ..app.rig_plan import NODES, RECORDER_NODE_PREFIX
+from .progress import Progress
+
+#: Sim: end the run (non-zero) once the plant has reported it stalled this long without a break
+#: (a run that cannot progress; a loaded machine's pauses of a few seconds are not one).
+STALL_GIVE_UP_S = 15.0
+LAUNCHER_NODE = "lubrig_rig_launcher"
+
+
+def _launcher_node() -> tuple[Any, Any]:
+    """A context of its own (the nodes' environment is this process's) and the launcher's node."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+
+    context = Context()
+    rclpy.init(context=context)
+    return context, Node(LAUNCHER_NODE, context=context)
+
+
+def _occupants(node: Any, namespace: str) -> list[str]:
+    """Who the launcher's node sees holding `namespace` (app.discovery.rig_occupants)."""
+    prefix = namespace.rstrip("/") + "/"
+    names = (t for t, _types in node.get_topic_names_and_types())
+    topics = [t for t in names if t.startswith(prefix) and "/" not in t[len(prefix) :]]
+    publishers = {
+        t: [(i.node_namespace, i.node_name) for i in node.get_publishers_info_by_topic(t)] for t in topics
+    }
+    nodes = [(ns, n) for n, ns in node.get_node_names_and_namespaces()]
+    held = rig_occupants(namespace, nodes, publishers, (*NODES, RECORDER_NODE_PREFIX))
+    return [h for h in held if h != fully_qualified(node.get_namespace(), LAUNCHER_NODE)]
+
+
+def namespace_taken(namespace: str, settle: float = GRAPH_SETTLE_S) -> str:
+    """One line naming the rig that holds `namespace` on this domain, or "" (after `settle` s).
+
+    The graph is watched for `settle` s of discovery (a rig seen early is named with all of its
+    nodes discovered by then).
+    """
+    context, node = _launcher_node()
+    try:
+        end = time.monotonic() + settle
+        held = _occupants(node, namespace)
+        while time.monotonic() < end:
+            time.sleep(0.1)
+            held = _occupants(node, namespace)
+        if not held:
+            return ""
+        return (
+            f"--namespace {namespace} is taken on ROS_DOMAIN_ID {node.context.get_domain_id()}: another "
+            f"rig runs there ({', '.join(held)}); give this rig a namespace of its own (e.g. --namespace "
+            f"{namespace.rstrip('/')}_2) or stop that rig"
+        )
+    finally:
+        node.destroy_node()
+        context.try_shutdown()
+
+
+def wait_complete(
+    deadline: float,
+    procs: dict[str, subprocess.Popen],
+    namespace: str = DEFAULT_NAMESPACE,
+    progress: Progress | None = None,
+    stall: list[str] | None = None,
+) -> bool:
+    """Sim: wait for <ns>/run_complete = true (latched) from the plant (rig time from /clock).
+
+    Gives up early when the plant has reported its run stalled (timing status ERROR) for
+    STALL_GIVE_UP_S without a break; the plant's line is appended to `stall`.
+    """
+    from std_msgs.msg import Bool
+
+    from ..app import contract
+    from ..nodes.interfaces import qos_profile
+
+    spec = contract.topic("run_complete").resolved(namespace)
+    context, node = _launcher_node()
+    done = []
+    node.create_subscription(
+        Bool, spec.name, lambda m: done.append(True) if m.data else None, qos_profile(spec.qos)
+    )
+    if progress is not None and progress.enabled:  # rig time on a terminal: the plant's /clock
+        from rosgraph_msgs.msg import Clock
+
+        node.create_subscription(
+            Clock,
+            "/clock",
+            lambda m: progress.update(m.clock.sec + 1e-9 * m.clock.nanosec),
+            qos_profile(contract.topic("/clock").qos),
+        )
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+    timing = f"{contract.resolve(namespace, 'plant')}: timing"
+    stalled_since: list[float] = []
+    stall_text: list[str] = []
+
+    def on_diagnostics(array: DiagnosticArray) -> None:
+        for status in array.status:
+            if status.name != timing:
+                continue
+            if status.level == DiagnosticStatus.ERROR and status.message.startswith("stalled"):
+                stalled_since[:] = stalled_since or [time.monotonic()]
+                stall_text[:] = [status.message]
+            else:
+                stalled_since.clear()
+
+    node.create_subscription(
+        DiagnosticArray, "/diagnostics", on_diagnostics, qos_profile(contract.topic("/diagnostics").qos)
+    )
+    from rclpy.executors import SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    try:
+        while not done and time.monotonic() < deadline:
+            if any(p.poll() is not None for p in procs.values()):
+                break
+            if stalled_since and time.monotonic() - stalled_since[0] >= STALL_GIVE_UP_S:
+                if stall is not None:
+                    stall.append(f"{timing}: {stall_text[0]}")
+                break
+            try:
+                executor.spin_once(timeout_sec=0.1)
+            except RuntimeError:
+                # a Ctrl-C: rclpy's signal handling shut the context down under a take ("Unable
+                # to convert call argument"), which is the interrupt, not a failure; the
+                # shutdown may still be in flight for a moment
+                end = time.monotonic() + 0.5
+                while context.ok() and time.monotonic() < end:
+                    time.sleep(0.01)
+                if context.ok():
+                    raise
+                raise KeyboardInterrupt from None
+    finally:
+        executor.shutdown(timeout_sec=1.0)  # before the context: no Executor.__del__ traceback
+        node.destroy_node()
+        context.try_shutdown()
+    return bool(done)

@@ -1,0 +1,139 @@
+"""What a rig node sees of the ROS graph: who else holds its namespace, who publishes band input.
+
+The rules are ROS-free (app/discovery.py: `rig_occupants`, `extra_publishers`,
+`band_source_problem`); this module asks rclpy for the graph and acts on the answer:
+
+- `NamespaceGuard`: a node's start-up (the plant's). For GRAPH_SETTLE_S of discovery it looks for
+  another node of its own name, or another publisher of its outputs, in its namespace (another
+  rig there: two `lubrig rig` without --namespace). Found: one FATAL line naming them, and the
+  node ends with exit status 2. Not found: `clear` is set, and the node's run may start.
+- `band_source_status`: the "band sources" diagnostic status, WARN naming every publisher of
+  band input besides the declared source (every mode; the plant's diagnostics carry it).
+- `await_subscriber`: hold a wall-clock loop until a named node has subscribed and reported.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from rclpy.node import Node
+
+from ..app.diagnostics import Status
+from ..app.discovery import (
+    GRAPH_SETTLE_S,
+    Endpoint,
+    band_source_problem,
+    extra_publishers,
+    fully_qualified,
+)
+from .common import steady_timer, subscribed_by
+
+#: Exit status of a node that would run where another rig runs (a user's choice of namespace).
+EXIT_NAMESPACE_TAKEN = 2
+#: s between looks at the graph while the guard waits for discovery to settle.
+GUARD_PERIOD_S = 0.1
+
+
+def graph_publishers(node: Node, topics: Iterable[str]) -> dict[str, list[Endpoint]]:
+    """Topic → (namespace, name) of every publisher the node sees on it (app.discovery's input)."""
+    return {
+        t: [(i.node_namespace, i.node_name) for i in node.get_publishers_info_by_topic(t)] for t in topics
+    }
+
+
+def namespace_taken(node: Node, topics: Iterable[str]) -> str:
+    """One line naming the other rig's nodes in `node`'s namespace, or "" if none is seen.
+
+    Another rig: a second node of `node`'s fully qualified name, or a publisher of one of
+    `topics` (the node's own outputs, one publisher each) other than `node`.
+    """
+    own = node.get_fully_qualified_name()
+    names = [fully_qualified(ns, n) for n, ns in node.get_node_names_and_namespaces()]
+    others = set(extra_publishers(graph_publishers(node, topics), own))
+    if names.count(own) > 1:
+        others.add(own)
+    if not others:
+        return ""
+    return (
+        f"namespace {node.get_namespace()} is taken on ROS_DOMAIN_ID {node.context.get_domain_id()}: "
+        f"another rig runs there ({', '.join(sorted(others))}); this {node.get_name()} does not "
+        "start (run the rig in another namespace: lubrig rig --namespace NS, or -r __ns:=NS)"
+    )
+
+
+class NamespaceGuard:
+    """The start-up check of `node` (see module docstring); `clear` is set once it has passed."""
+
+    def __init__(self, node: Node, topics: Iterable[str], settle: float = GRAPH_SETTLE_S) -> None:
+        self.node, self.topics = node, tuple(topics)
+        self.end = time.monotonic() + settle
+        self.clear = threading.Event()
+        self._timer = steady_timer(node, GUARD_PERIOD_S, self._look)
+
+    def _look(self) -> None:
+        verdict = namespace_taken(self.node, self.topics)
+        if not verdict and time.monotonic() < self.end:
+            return  # discovery still settling
+        self._timer.cancel()
+        if not verdict:
+            self.clear.set()
+            return
+        self.node.exit_status = EXIT_NAMESPACE_TAKEN  # type: ignore[attr-defined]
+        self.node.get_logger().fatal(verdict)
+        # the node ends as on a Ctrl-C (spin_node); sent once this callback has returned, so that
+        # the interrupt does not land in it (the executor would report it as the callback's error)
+        ender = threading.Timer(GUARD_PERIOD_S, os.kill, (os.getpid(), signal.SIGINT))
+        ender.daemon = True
+        ender.start()
+
+
+def band_source_status(node: Node, topics: Iterable[str], source: str, hardware_id: str) -> Status:
+    """The "band sources" status: WARN naming each band publisher besides the declared `source`."""
+    publishers = graph_publishers(node, topics)
+    problem = band_source_problem(publishers, source, node.get_namespace())
+    seen = sorted({fully_qualified(ns, n) for ends in publishers.values() for ns, n in ends})
+    return Status(
+        name="band sources",
+        hardware_id=hardware_id,
+        level="warn" if problem else "ok",
+        message=problem or "ok",
+        values=(("declared_source", source or "(any one)"), ("publishers", ", ".join(seen) or "none")),
+    )
+
+
+def await_subscriber(
+    node: Node,
+    publisher: Any,
+    prefix: str,
+    stop: threading.Event,
+    heard: Callable[[], bool],
+    progress_wait: float,
+) -> bool:
+    """Hold a wall-clock loop until node prefix* takes `publisher`'s topic; False if `stop` meanwhile.
+
+    Its subscription in the graph and matched by this publisher (samples published before the
+    match would be lost), then its flow_progress (`heard()`: the recorder reports once its
+    subscription has matched); a consumer that reports none gets `progress_wait` s of discovery.
+    """
+    log = node.get_logger()
+    log.info(f"realtime: waiting for {prefix}* to subscribe to {publisher.topic_name.rsplit('/', 1)[-1]}")
+    topic = [publisher.topic_name]
+    while not (publisher.get_subscription_count() > 0 and subscribed_by(node, topic, prefix)):
+        if stop.wait(0.05):
+            return False
+    end = time.monotonic() + progress_wait
+    while not heard() and time.monotonic() < end:
+        if stop.wait(0.05):
+            return False
+    if not heard():
+        log.warning(
+            f"realtime: no flow_progress from {prefix}* within {progress_wait:g} s of its "
+            "subscription; starting (its first samples may be lost)"
+        )
+    log.info(f"realtime: {prefix}* subscribed; the loop starts")
+    return True
