@@ -19,6 +19,7 @@ from std_msgs.msg import Float64
 
 from lubrig_interfaces.msg import FlowProgress, RigStateBlock
 from lubrig_ros.app.contract import resolve, select_topics
+from lubrig_ros.bag.reader import RIG_STATE_FIELDS
 from lubrig_ros.bag.recording import SIM_HOLD_NS, WALL_CLOCK_NS, RecordingSession
 
 NS = "/lubrig"
@@ -37,15 +38,7 @@ def _block(first: int, n: int, segment: int = 0, t0_ns: int | None = None) -> by
     msg.first_sample_index = first
     msg.segment = segment
     values = [float(first + i) for i in range(n)]
-    for field in (
-        "displacement",
-        "velocity",
-        "friction_coefficient",
-        "friction_force",
-        "band_velocity",
-        "relative_velocity",
-        "belt_travel",
-    ):
+    for field in RIG_STATE_FIELDS:
         setattr(msg, field, values)
     return serialize_message(msg)
 
