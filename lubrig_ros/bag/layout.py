@@ -136,32 +136,55 @@ def typestore() -> Typestore:
     return _TYPESTORE
 
 
+class MetadataUnreadableError(BagError):
+    """metadata.yaml cannot be read; ``what`` says so without naming the bag (one line)."""
+
+    def __init__(self, bag_dir: Path, reason: str) -> None:
+        self.what = f"metadata.yaml is unreadable ({reason})"
+        super().__init__(f"bag {str(bag_dir)!r}: {self.what}")
+
+
+def _reason(exc: Exception) -> str:
+    """One line for why metadata.yaml did not load (a YAML error names its line and column)."""
+    if isinstance(exc, yaml.MarkedYAMLError) and exc.problem_mark is not None:
+        mark = exc.problem_mark
+        return f"{exc.problem} at line {mark.line + 1}, column {mark.column + 1}"
+    if isinstance(exc, KeyError):
+        return f"no {exc} mapping"
+    return " ".join(f"{type(exc).__name__}: {exc}".split())
+
+
 def bag_information(bag_dir: Path) -> dict[str, object]:
-    """The rosbag2_bagfile_information mapping of bag_dir/metadata.yaml; BagError if unreadable."""
+    """The rosbag2_bagfile_information mapping of bag_dir/metadata.yaml; MetadataUnreadableError if not."""
     try:
         return dict(yaml.safe_load((bag_dir / "metadata.yaml").read_text())["rosbag2_bagfile_information"])
     except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError) as exc:
-        raise BagError(f"bag {str(bag_dir)!r}: metadata.yaml is unreadable ({exc})") from exc
+        raise MetadataUnreadableError(bag_dir, _reason(exc)) from exc
 
 
 def find_mcap(bag: str | Path) -> Path:
-    """The .mcap file of a bag directory (from metadata.yaml, else the only *.mcap), or a file."""
+    """The .mcap file of a bag: the file itself, or the one *.mcap of a bag directory.
+
+    metadata.yaml is not trusted for this (it may be wrong: that is what `lubrig bag check`
+    names and repair rebuilds); it only chooses among several .mcap files, when it names one of
+    them. BagError if there is none, or several and metadata.yaml names none of them.
+    """
     bag = Path(bag)
     if bag.is_file():
         return bag
     if not bag.is_dir():
         raise BagError(f"bag {str(bag)!r} does not exist: give a bag directory or an .mcap file")
-    if (bag / "metadata.yaml").is_file():
-        files = bag_information(bag).get("relative_file_paths")
-        if not isinstance(files, list):
-            raise BagError(f"bag {str(bag)!r}: metadata.yaml lists no relative_file_paths")
-        if len(files) != 1 or not str(files[0]).endswith(".mcap"):
-            raise BagError(f"bag {str(bag)!r}: expected one .mcap file, metadata lists {files}")
-        return bag / files[0]
     found = sorted(bag.glob("*.mcap"))
-    if len(found) != 1:
-        raise BagError(f"bag {str(bag)!r}: expected one .mcap file, found {len(found)}")
-    return found[0]
+    if len(found) == 1:
+        return found[0]
+    if found:
+        try:
+            named = bag_information(bag).get("relative_file_paths")
+        except BagError:
+            named = None
+        if isinstance(named, list) and len(named) == 1 and bag / str(named[0]) in found:
+            return bag / str(named[0])
+    raise BagError(f"bag {str(bag)!r}: expected one .mcap file, found {len(found)}")
 
 
 def cdr_string(data: bytes) -> str | None:

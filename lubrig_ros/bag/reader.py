@@ -1,4 +1,10 @@
-"""Reading bags: integrity check, summary (`bag info`), messages, numpy arrays per topic."""
+"""Reading bags: integrity check, summary (`bag info`), messages, numpy arrays per topic.
+
+The one bag reader: messages come from the MCAP file's own channels and schemas
+(lubrig_ros.bag.mcapscan over lubrig_ros.bag.frames), never through metadata.yaml, so a
+metadata.yaml that describes a channel differently cannot make a stream disappear; the check
+before reading (check_bag) names such a metadata.yaml as damage.
+"""
 
 from __future__ import annotations
 
@@ -8,15 +14,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Connection, MessageDefinitionFormat
-from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from lubrig_ros.app.cdr import float64_value
 from lubrig_ros.bag.errors import BagError
-from lubrig_ros.bag.layout import RUN_CONFIG_KEY, bag_information, find_mcap, typestore
+from lubrig_ros.bag.layout import RUN_CONFIG_KEY, find_mcap, typestore
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
+from lubrig_ros.bag.meta import SCHEMA_ENCODING
+from lubrig_ros.bag.verify import verify_bag
 
 
 @dataclass
@@ -74,55 +80,28 @@ class BagSummary:
         return "\n".join(lines)
 
 
-def _load_metadata(bag_dir: Path) -> dict[str, object]:
-    meta = bag_dir / "metadata.yaml"
-    if not meta.is_file():
-        raise BagError(
-            f"bag {str(bag_dir)!r} has no metadata.yaml (recording not finalized?): "
-            f"run `lubrig bag repair {bag_dir}`"
-        )
-    return bag_information(bag_dir)
-
-
 def check_bag(bag: str | Path) -> BagSummary:
-    """Verify every chunk of the bag and that metadata.yaml agrees; BagError names the problem."""
-    bag = Path(bag)
-    mcap_path = find_mcap(bag)
-    meta = _load_metadata(mcap_path.parent)
-    result = ScanResult()
-    schemas: dict[int, str] = {}
-    channels: dict[int, tuple[str, str]] = {}
-    counts: dict[int, int] = {}
-    start, end = 2**63 - 1, 0
-    for rec in scan(mcap_path, result):
-        if isinstance(rec, Schema):
-            schemas[rec.id] = rec.name
-        elif isinstance(rec, Channel):
-            channels[rec.id] = (rec.topic, schemas.get(rec.schema_id, "?"))
-            counts.setdefault(rec.id, 0)
-        elif isinstance(rec, Message):
-            counts[rec.channel_id] = counts.get(rec.channel_id, 0) + 1
-            start, end = min(start, rec.log_time), max(end, rec.log_time)
-    if not result.complete:
-        problem = result.stop_reason or "; ".join(result.damaged_chunks)
-        raise BagError(f"bag {str(bag)!r} is damaged: {problem}; run `lubrig bag repair {bag}`")
-    entries: Any = meta.get("topics_with_message_count", [])
-    listed = {t["topic_metadata"]["name"]: int(t["message_count"]) for t in entries}
-    found = {channels[c][0]: n for c, n in counts.items() if c in channels}
-    if any(listed.get(name, 0) != n for name, n in found.items()) or set(listed) - set(found):
-        raise BagError(
-            f"bag {str(bag)!r}: metadata.yaml counts {listed} disagree with the file {found}; "
-            f"run `lubrig bag repair --force {bag}`"
-        )
-    topics = [TopicSummary(channels[c][0], channels[c][1], counts[c]) for c in sorted(channels)]
-    total = sum(counts.values())
+    """Verify the bag as `lubrig bag check` does (all but continuity); BagError names the first problem.
+
+    Every chunk (CRC), the index, the summary and metadata.yaml against the file, every field
+    (lubrig_ros.bag.verify); the summary's topics, counts and times are the file's own.
+    """
+    v = verify_bag(bag, full=True, continuity=False)
+    if v.structural:
+        first = v.structural[0]
+        if "does not exist" in first.text or "not a bag" in first.text:
+            raise BagError(first.text)
+        raise BagError(f"{v.verdict()}; run `lubrig bag repair {bag}`")
+    assert v.mcap is not None
+    topics = [TopicSummary(name, v.types.get(name, "?"), n) for name, n in v.counts.items()]
+    custom = (v.metadata or {}).get("custom_data") or {}
     return BagSummary(
-        mcap_path,
+        v.mcap,
         topics,
-        start if total else 0,
-        end if total else 0,
-        result.chunks,
-        {str(k): str(v) for k, v in dict(meta.get("custom_data") or {}).items()},  # type: ignore[call-overload]
+        v.start_ns,
+        v.end_ns,
+        v.chunks,
+        {str(k): str(x) for k, x in dict(custom).items()},  # type: ignore[call-overload]
     )
 
 
@@ -131,48 +110,94 @@ def bag_info(bag: str | Path) -> BagSummary:
     return check_bag(bag)
 
 
+@dataclass(frozen=True)
+class Stream:
+    """One channel of a bag as the reader gives it: topic, type and the definition the file holds."""
+
+    topic: str
+    msgtype: str
+    schema: Schema | None
+
+
 def read_messages(
     bag: str | Path, topics: Iterable[str] | None = None
 ) -> Iterator[tuple[str, str, int, bytes]]:
-    """Yield (topic, msgtype, log_time_ns, cdr_bytes) in log-time order (via rosbags)."""
-    for conn, t, data in _connection_messages(bag, topics):
-        yield conn.topic, conn.msgtype, t, data
+    """Yield (topic, msgtype, log_time_ns, cdr_bytes) in log-time order, every message of the file.
+
+    Read from the MCAP file itself (its channels and schemas), not through metadata.yaml: no
+    channel is left out because metadata.yaml describes it differently. BagError if the data
+    section is damaged (nothing is yielded then) or a message is on an undefined channel.
+    """
+    for stream, t, data in stream_messages(bag, topics):
+        yield stream.topic, stream.msgtype, t, data
 
 
-def _connection_messages(
+def stream_messages(
     bag: str | Path, topics: Iterable[str] | None = None
-) -> Iterator[tuple[Connection, int, bytes]]:
-    """(connection, log_time_ns, cdr_bytes) in log-time order: read_messages with the connection."""
-    bag_dir = find_mcap(bag).parent
+) -> Iterator[tuple[Stream, int, bytes]]:
+    """(stream, log_time_ns, cdr_bytes) in log-time order (ties in file order): read_messages with the stream.
+
+    topics: only these (a topic the bag does not hold gives nothing). The whole data section is
+    scanned (every chunk's CRC checked) before the first message is yielded.
+    """
+    path = find_mcap(bag)
     wanted = set(topics) if topics is not None else None
-    with Reader(bag_dir) as reader:
-        conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
-        for conn, t, data in reader.messages(connections=conns):
-            yield conn, t, bytes(data)
+    result = ScanResult()
+    schemas: dict[int, Schema] = {}
+    streams: dict[int, Stream] = {}
+    kept: list[tuple[int, Stream, bytes]] = []
+    try:
+        for rec in scan(path, result):
+            if isinstance(rec, Schema):
+                schemas.setdefault(rec.id, rec)
+            elif isinstance(rec, Channel):
+                schema = schemas.get(rec.schema_id)
+                streams.setdefault(rec.id, Stream(rec.topic, schema.name if schema else "?", schema))
+            elif isinstance(rec, Message):
+                stream = streams.get(rec.channel_id)
+                if stream is None:
+                    raise BagError(
+                        f"bag {str(bag)!r} is damaged: a message at log time {rec.log_time} ns is on "
+                        f"undefined channel {rec.channel_id}; run `lubrig bag repair {bag}`"
+                    )
+                if wanted is None or stream.topic in wanted:
+                    kept.append((rec.log_time, stream, rec.data))
+    except OSError as exc:
+        raise BagError(f"cannot read {str(path)!r}: {exc.strerror or exc}") from exc
+    if not result.complete:
+        problem = result.stop_reason or "; ".join(result.damaged_chunks)
+        raise BagError(f"bag {str(bag)!r} is damaged: {problem}; run `lubrig bag repair {bag}`")
+    kept.sort(key=lambda item: item[0])  # stable: ties keep their order in the file
+    for t, stream, data in kept:
+        yield stream, t, data
 
 
 _BAG_STORES: dict[tuple[str, str], Typestore] = {}
 
 
-def connection_typestore(conn: Connection) -> Typestore:
-    """The type store that decodes the messages of one connection.
+def stream_typestore(stream: Stream) -> Typestore:
+    """The type store that decodes the messages of one stream.
 
-    The project's (layout.typestore) when the bag defines the connection's type as the project
-    does; otherwise one built from the definition stored in the bag, so a bag recorded before a
-    field was appended to a message (RigStateBlock's lateness and skipped) still decodes, with
-    that field absent from its messages.
+    The project's (layout.typestore) when the bag defines the stream's type as the project does;
+    otherwise one built from the definition stored in the bag, so a bag recorded before a field
+    was appended to a message (RigStateBlock's lateness and skipped) still decodes, with that
+    field absent from its messages.
     """
     store = typestore()
-    definition = conn.msgdef
-    if definition.format != MessageDefinitionFormat.MSG or not definition.data:
+    schema = stream.schema
+    if schema is None or schema.encoding != SCHEMA_ENCODING or not schema.data:
         return store
-    key = (conn.msgtype, definition.data)
+    try:
+        text = schema.data.decode()
+    except UnicodeDecodeError:
+        return store
+    key = (stream.msgtype, text)
     if key not in _BAG_STORES:
         try:
-            types = get_types_from_msg(definition.data, conn.msgtype)
+            types = get_types_from_msg(text, stream.msgtype)
         except Exception:  # an unparsable stored definition: decode with the project's types
             types = {}
-        if conn.msgtype not in types or types[conn.msgtype] == store.fielddefs.get(conn.msgtype):
+        if stream.msgtype not in types or types[stream.msgtype] == store.fielddefs.get(stream.msgtype):
             _BAG_STORES[key] = store
         else:
             own = get_typestore(Stores.EMPTY)  # the stored definition holds its dependencies
@@ -196,8 +221,13 @@ class TopicArrays:
 
 #: Per-sample fields of lubrig_interfaces RigState (and the arrays of RigStateBlock), in order.
 RIG_STATE_FIELDS: tuple[str, ...] = (
-    "displacement", "velocity", "friction_coefficient", "friction_force", "band_velocity",
-    "relative_velocity", "belt_travel",
+    "displacement",
+    "velocity",
+    "friction_coefficient",
+    "friction_force",
+    "band_velocity",
+    "relative_velocity",
+    "belt_travel",
 )
 RIG_STATE = "lubrig_interfaces/msg/RigState"
 RIG_STATE_BLOCK = "lubrig_interfaces/msg/RigStateBlock"
@@ -250,8 +280,11 @@ def _decode(msgtype: str, data: bytes, store: Typestore) -> dict[str, object]:
         return {"data": float64_value(data)}  # fast path; other encodings: rosbags below
     msg: Any = store.deserialize_cdr(data, msgtype)
     if msgtype == RIG_STATE:
-        out: dict[str, object] = {"stamp": _stamp_s(msg.header.stamp), "sample_index": int(msg.sample_index),
-                                  "segment": int(msg.segment)}
+        out: dict[str, object] = {
+            "stamp": _stamp_s(msg.header.stamp),
+            "sample_index": int(msg.sample_index),
+            "segment": int(msg.segment),
+        }
         out.update({name: float(getattr(msg, name)) for name in RIG_STATE_FIELDS})
         return out
     if msgtype == "sensor_msgs/msg/JointState":
@@ -285,23 +318,29 @@ def read_arrays(bag: str | Path, topics: Iterable[str] | None = None) -> dict[st
     values: dict[str, dict[str, list[object]]] = {}
     types: dict[str, str] = {}
     blocks: dict[str, list[tuple[int, dict[str, np.ndarray]]]] = {}
-    for conn, t, data in _connection_messages(bag, topics):
-        topic, msgtype = conn.topic, conn.msgtype
+    for stream, t, data in stream_messages(bag, topics):
+        topic, msgtype = stream.topic, stream.msgtype
         types[topic] = msgtype
-        store = connection_typestore(conn)
-        if msgtype in BLOCK_FIELDS:
-            samples = _block_samples(msgtype, store.deserialize_cdr(data, msgtype))
-            blocks.setdefault(topic, []).append((t, samples))
-            continue
+        try:
+            store = stream_typestore(stream)
+            if msgtype in BLOCK_FIELDS:
+                samples = _block_samples(msgtype, store.deserialize_cdr(data, msgtype))
+                blocks.setdefault(topic, []).append((t, samples))
+                continue
+            decoded = _decode(msgtype, data, store)
+        except Exception as exc:  # the stream cannot be read: say which, never skip it
+            raise BagError(
+                f"bag {str(bag)!r}: topic {topic} ({msgtype}): the message at log time {t} ns does not "
+                f"decode ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else 'no detail'}); "
+                "the stream cannot be read"
+            ) from None
         times.setdefault(topic, []).append(t)
         cols = values.setdefault(topic, {})
-        for key, val in _decode(msgtype, data, store).items():
+        for key, val in decoded.items():
             cols.setdefault(key, []).append(val)
     out: dict[str, TopicArrays] = {}
     for topic, ts in times.items():
-        fields = {
-            k: np.array(v, dtype=object if k == "message" else None) for k, v in values[topic].items()
-        }
+        fields = {k: np.array(v, dtype=object if k == "message" else None) for k, v in values[topic].items()}
         out[topic] = TopicArrays(types[topic], np.array(ts, dtype=np.int64) / 1e9, fields)
     for topic, parts in blocks.items():
         names = list(parts[0][1])

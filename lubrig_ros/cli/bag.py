@@ -1,7 +1,8 @@
 """`lubrig bag info|check|repair BAG`: inspect, verify and repair recorded bags.
 
-Exit status: 0 when the bag is fine (info, check) or was rebuilt / needed nothing (repair);
-1 when check / info --verify find a problem (the first one on stderr, by byte offset and topic);
+Exit status: 0 when the bag is fine (info, check) or was rebuilt and verifies / needed nothing
+(repair); 1 when check / info --verify find a problem (the first one on stderr, by byte offset
+and topic; every problem on stdout, one line each) or the rebuilt bag still does not verify;
 2 for a bag that cannot be read at all or an unusable argument (one line on stderr).
 """
 
@@ -86,8 +87,10 @@ def _repair(args: argparse.Namespace) -> int:
     except BagError as exc:
         raise ValueError(str(exc)) from exc
     if not report.rewritten:
-        print(f"{report.mcap}: verified intact, nothing to repair ({report.kept} messages; "
-              "--force rebuilds anyway)")
+        print(
+            f"{report.mcap}: verified intact, nothing to repair ({report.kept} messages; "
+            "--force rebuilds anyway)"
+        )
         return 0
     print(f"{args.bag}: {report.problems[0] if report.problems else 'rebuilt on request (--force)'}")
     if len(report.problems) > 1:
@@ -101,10 +104,22 @@ def _repair(args: argparse.Namespace) -> int:
         print(f"  dropped {report.dropped} messages whose channel definition was lost")
     if not report.damage and not report.dropped:
         print("  dropped nothing: every message of the data section was kept")
+    for line in report.not_kept:
+        print(f"  not kept: {line}")
     if report.backup:
         print(f"  original kept as {report.backup}")
     elif not in_place:
         print(f"  original left untouched in {args.bag}")
+    for line in report.remaining:
+        print(f"  still wrong: {line}")
+    if report.remaining:
+        first = report.remaining[0]
+        print(
+            f"lubrig bag repair: the rebuilt bag {str(report.output)!r} does not verify: {first}",
+            file=sys.stderr,
+        )
+        return 1
+    print(f"  verified: {report.output} passes the structure and metadata checks of `lubrig bag check`")
     return 0
 
 
@@ -115,8 +130,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     info = sub.add_parser("info", help="print topics, types, counts, duration and gaps per stream")
     info.add_argument("bag", help="bag directory")
     info.add_argument("--config", action="store_true", help="also print the stored run config")
-    info.add_argument("--verify", action="store_true",
-                      help="also verify everything (as `lubrig bag check`); exit 1 on a problem")
+    info.add_argument(
+        "--verify",
+        action="store_true",
+        help="also verify everything (as `lubrig bag check`); exit 1 on a problem",
+    )
     info.set_defaults(func=_info)
     chk = sub.add_parser(
         "check", help="verify a bag: magic, header, chunk CRCs, index, summary, footer, counts, continuity"

@@ -122,6 +122,14 @@ def _state_arrays(bag: str | Path, namespace: str) -> tuple[str, TopicArrays, di
         topic = names[name]
         if topic in arrays and arrays[topic].msgtype == msgtype and arrays[topic].t.size:
             return topic, arrays[topic], arrays
+    for name in (STATE_BLOCK, STATE):  # a state stream the report cannot read is never passed over
+        held = arrays.get(names[name])
+        if held is not None and held.t.size:
+            readable = ", ".join(f"{n} {t}" for n, t in STATE_TOPICS)
+            raise ReportError(
+                f"bag {str(bag)!r}: {names[name]} holds {held.t.size} {held.msgtype} messages, a type the "
+                f"report cannot read as rig states (readable: {readable})"
+            )
     return names[STATE], TopicArrays("", np.zeros(0), {}), arrays
 
 
@@ -252,9 +260,12 @@ def read_run(bag: str | Path, namespace: str | None = None, segment: int | None 
     if order is not None and "lateness" in run.state.fields:
         state = run.state
         timing = rig_timing(
-            int(np.asarray(state["segment"])[order[0]]), 1.0 / run.config.sample_rate,
-            np.asarray(state["sample_index"])[order], np.asarray(state["lateness"])[order],
-            np.asarray(state["skipped"])[order], stated_max_lag(run.arrays, run.namespace),
+            int(np.asarray(state["segment"])[order[0]]),
+            1.0 / run.config.sample_rate,
+            np.asarray(state["sample_index"])[order],
+            np.asarray(state["lateness"])[order],
+            np.asarray(state["skipped"])[order],
+            stated_max_lag(run.arrays, run.namespace),
         )
     return RecordedRun(run.config, trajectory, _recording(accounts), timing)
 
@@ -351,14 +362,20 @@ def _current_layout(
     order = order[keep]  # each sample once (a duplicate is the same sample again)
     field = lambda name: np.asarray(state[name], float)[order]  # noqa: E731
     time = _on_grid(rig_times(state, config.sample_rate)[order], config.sample_rate)
-    trajectory = Trajectory(time, field("displacement"), field("velocity"),
-                            field("friction_coefficient"), field("band_velocity"),
-                            field("relative_velocity"))
+    trajectory = Trajectory(
+        time,
+        field("displacement"),
+        field("velocity"),
+        field("friction_coefficient"),
+        field("band_velocity"),
+        field("relative_velocity"),
+    )
     return trajectory, order
 
 
-def _legacy_layout(config: RunConfig, state: TopicArrays, arrays: dict[str, TopicArrays],
-                   namespace: str) -> Trajectory:
+def _legacy_layout(
+    config: RunConfig, state: TopicArrays, arrays: dict[str, TopicArrays], namespace: str
+) -> Trajectory:
     friction_topic, band_topic = resolve(namespace, FRICTION), resolve(namespace, BAND)
     order = np.argsort(state["stamp"], kind="stable")
     time = np.asarray(state["stamp"], float)[order]
@@ -366,17 +383,37 @@ def _legacy_layout(config: RunConfig, state: TopicArrays, arrays: dict[str, Topi
     v = np.asarray(state["velocity"], float)[order]
     n = time.size
     time = _on_grid(time, config.sample_rate)
-    if friction_topic in arrays and arrays[friction_topic].t.size == n:
-        mu = np.asarray(arrays[friction_topic]["data"], float)[order]
+    friction = _legacy_scalar(arrays, friction_topic, (n,), n)
+    if friction is not None:
+        mu = friction[order]
     else:
         mu = np.asarray(state["effort"], float)[order] / config.rig.friction.normal_force
-    recorded = arrays.get(band_topic)
-    band_recorded = np.asarray(recorded["data"], float) if recorded is not None else np.zeros(0)
-    if band_recorded.size == n - 1:
-        band = np.concatenate([[float(config.band(0.0))], band_recorded])
-    elif band_recorded.size == n:
-        band = band_recorded
-    else:
+    band_recorded = _legacy_scalar(arrays, band_topic, (n - 1, n), n)
+    if band_recorded is None:
         band = np.asarray(config.band(time), float)
+    elif band_recorded.size == n - 1:
+        band = np.concatenate([[float(config.band(0.0))], band_recorded])
+    else:
+        band = band_recorded
     rel = config.rig.relative_velocity(band, v)
     return Trajectory(time, x, v, mu, band, rel)
+
+
+def _legacy_scalar(
+    arrays: dict[str, TopicArrays], topic: str, sizes: tuple[int, ...], states: int
+) -> np.ndarray | None:
+    """The Float64 values of a legacy topic, None if the bag holds none (the fallback is then used).
+
+    A topic that holds messages but cannot be paired with the states (another count, no `data`)
+    is a ReportError naming it: a recorded stream is never replaced silently.
+    """
+    held = arrays.get(topic)
+    if held is None or not held.t.size:
+        return None
+    if "data" not in held.fields or held.t.size not in sizes:
+        expected = " or ".join(str(k) for k in sizes)
+        raise ReportError(
+            f"{topic} holds {held.t.size} {held.msgtype} messages for {states} states (expected {expected} "
+            "Float64 values): it cannot be paired with the states"
+        )
+    return np.asarray(held["data"], float)
