@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import decimate
 
+from ..core.errors import LubrigError
 from ..core.wavelet import (
     DEFAULT_DJ,
     MIN_SAMPLES,
@@ -51,7 +52,7 @@ SIGNAL = "displacement_m minus its mean"
 POWER = "|W|^2 / variance (Torrence & Compo), time mean outside the cone of influence"
 
 
-class AnalysisError(ValueError):
+class AnalysisError(LubrigError, ValueError):
     """The window cannot be analysed (too short, constant, bad options); one user-facing line."""
 
 
@@ -79,8 +80,10 @@ class WaveletPolicy:
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value > 0):
                 raise bad(name, value, "a frequency > 0 Hz")
-        if isinstance(self.n_components, bool) or int(self.n_components) != self.n_components or (
-            self.n_components < 1
+        if (
+            isinstance(self.n_components, bool)
+            or int(self.n_components) != self.n_components
+            or (self.n_components < 1)
         ):
             raise bad("n_components", self.n_components, "an integer >= 1")
         if not 0.0 <= self.min_relative_power < 1.0:
@@ -146,9 +149,7 @@ class WaveletAnalysis:
         }
 
 
-def _window(
-    time: np.ndarray, x: np.ndarray, start: float, dt: float
-) -> tuple[np.ndarray, np.ndarray]:
+def _window(time: np.ndarray, x: np.ndarray, start: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     keep = time >= time[0] + start - 0.5 * dt if time.size else np.zeros(0, bool)
     return time[keep], x[keep]
 
@@ -178,9 +179,7 @@ def analyze_displacement(
         start = policy.start_for(float(time[-1] - time[0]) if time.size else 0.0)
         t, x = _window(time, displacement, start, dt)
     if x.size < MIN_SAMPLES:
-        raise AnalysisError(
-            f"{x.size} samples after --start {start:g} s; at least {MIN_SAMPLES} are needed"
-        )
+        raise AnalysisError(f"{x.size} samples after --start {start:g} s; at least {MIN_SAMPLES} are needed")
     if not np.isfinite(x).all():
         raise AnalysisError("displacement holds non-finite values in the analysed window")
     dj = policy.dj

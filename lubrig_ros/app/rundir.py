@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.errors import LubrigError
 from ..core.presets import RunConfig
 from ..core.trajectory import Trajectory
 from .fileio import write_text_atomic
@@ -33,7 +34,7 @@ CSV_HEADER = ",".join(CSV_COLUMNS)
 CSV_FORMAT = "%.17g"
 
 
-class RunDirError(ValueError):
+class RunDirError(LubrigError, ValueError):
     """A run directory is missing, incomplete or unreadable; the message is one user-facing line."""
 
 

@@ -1,5 +1,7 @@
 """Errors of the bag package."""
 
+from lubrig_ros.core.errors import LubrigError
 
-class BagError(Exception):
+
+class BagError(LubrigError):
     """A bag cannot be written, read or repaired; the message is one user-facing line."""

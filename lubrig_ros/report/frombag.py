@@ -28,6 +28,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from lubrig_ros.core.errors import LubrigError
+
 from ..app.accounting import StreamAccount
 from ..app.contract import DEFAULT_NAMESPACE, resolve, validate_namespace
 from ..app.lateness import RigTiming, rig_timing
@@ -49,7 +51,7 @@ RIG_STATE_BLOCK = "lubrig_interfaces/msg/RigStateBlock"
 STATE_TOPICS = ((STATE_BLOCK, RIG_STATE_BLOCK), (STATE, RIG_STATE), (STATE, JOINT_STATE))
 
 
-class ReportError(ValueError):
+class ReportError(LubrigError, ValueError):
     """The bag cannot be turned into a report; the message is one user-facing line."""
 
 

@@ -15,6 +15,8 @@ import html
 import re
 from pathlib import Path
 
+from lubrig_ros.core.errors import LubrigError
+
 STYLE = """
 body { font-family: system-ui, -apple-system, 'Segoe UI', sans-serif; max-width: 1100px;
        margin: 2em auto; padding: 0 1em; color: #1a1a1a; line-height: 1.45; }
@@ -34,7 +36,7 @@ _BOLD = re.compile(r"\*\*([^*]+)\*\*")
 _ITALIC = re.compile(r"(?<![*\w])\*([^*\s][^*]*)\*(?![*\w])")
 
 
-class PageError(ValueError):
+class PageError(LubrigError, ValueError):
     """An image of the page cannot be embedded (missing file); one user-facing line."""
 
 
@@ -138,7 +140,7 @@ def markdown_to_html(text: str, root: Path, title: str) -> str:
         i += 1
     flush()
     return (
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+        '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
         f"<title>{html.escape(title)}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n"
         + "\n".join(body)
         + "\n</body>\n</html>\n"

@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from lubrig_ros.core.errors import LubrigError
+
 from ..app.selection import RunSelection
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, deep_merge, from_mapping, read_yaml
@@ -35,7 +37,7 @@ NOT_SWEEPABLE = ("name", "description", "band.kind", "band.source", "rig.frictio
 MAX_POINTS = 1_000_000
 
 
-class SpecError(ValueError):
+class SpecError(LubrigError, ValueError):
     """An invalid sweep specification; the message names the bad value and what is valid."""
 
 
