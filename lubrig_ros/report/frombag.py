@@ -63,11 +63,6 @@ def _info(bag: str | Path) -> BagSummary:
         raise ReportError(str(exc)) from None
 
 
-def config_from_bag(bag: str | Path) -> RunConfig:
-    """The RunConfig stored with the bag (full integrity check first)."""
-    return _config(bag, _info(bag))
-
-
 def _config(bag: str | Path, info: BagSummary) -> RunConfig:
     text = info.run_config
     if not text:
@@ -78,17 +73,13 @@ def _config(bag: str | Path, info: BagSummary) -> RunConfig:
         raise ReportError(f"bag {str(bag)!r}: stored run configuration is invalid ({exc})") from None
 
 
-def bag_namespace(bag: str | Path) -> str:
+def _namespace(bag: str | Path, info: BagSummary) -> str:
     """The rig namespace of a bag: that of its state topic(s) with messages.
 
     State topics: <namespace>/state_block (RigStateBlock), <namespace>/state (RigState, or the
     legacy JointState). A bag without one gives the default /lubrig (the caller then finds no
     states); one with the states of several namespaces (two rigs) is refused, naming them.
     """
-    return _namespace(bag, _info(bag))
-
-
-def _namespace(bag: str | Path, info: BagSummary) -> str:
     found: dict[str, list[str]] = {}
     for t in info.topics:
         for name, msgtype in STATE_TOPICS:
