@@ -37,19 +37,28 @@ def friction_law(params: Any | None = None) -> FrictionLaw:
 def _evaluate(velocity: np.typing.ArrayLike, params: Any | None) -> tuple[np.ndarray, np.ndarray]:
     params = params if params is not None else FrictionParameters()
     v = np.asarray(velocity, dtype=np.float64)
-    if np.isnan(v).any():
-        raise ValueError("velocity contains NaN; expected finite sliding velocities in m/s")
+    if not np.isfinite(v).all():
+        bad = v[~np.isfinite(v)].flat[0]
+        what = "NaN" if np.isnan(bad) else repr(float(bad))
+        raise ValueError(f"velocity contains {what}; expected finite sliding velocities in m/s")
     mu, dmu = law_for(params).evaluate(np.ascontiguousarray(v).ravel(), params)
     return mu.reshape(v.shape), dmu.reshape(v.shape)
 
 
 def friction_coefficient(velocity: np.typing.ArrayLike, params: Any | None = None) -> np.ndarray:
-    """μ at sliding velocity v (m/s), odd in v; returns an array of v's shape."""
+    """μ at sliding velocity v (m/s), odd in v; returns an array of v's shape.
+
+    Every finite double is a valid v (0 and subnormals included); ±inf and NaN raise ValueError.
+    """
     return _evaluate(velocity, params)[0]
 
 
 def friction_slope(velocity: np.typing.ArrayLike, params: Any | None = None) -> np.ndarray:
-    """Analytic dμ/dv in s/m at sliding velocity v (m/s), even in v."""
+    """Analytic dμ/dv in s/m at sliding velocity v (m/s), even in v.
+
+    Finite at every finite v ≠ 0; a law whose slope is unbounded at 0 (the junction law:
+    dμ/dv ∝ |v|^k2 there) gives +inf at exactly v = 0.
+    """
     return _evaluate(velocity, params)[1]
 
 

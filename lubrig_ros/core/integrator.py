@@ -110,6 +110,7 @@ class RigIntegrator:
         """
         if band_velocity is not None:
             self.initial_band_velocity = float(band_velocity)
+        self._check_resolved(self.initial_band_velocity)
         if not math.isfinite(time):
             raise ValueError(f"time={time!r} must be finite")
         if self.initial_displacement is not None:
@@ -118,9 +119,29 @@ class RigIntegrator:
             x_start = (1.0 + self.initial_perturbation) * self.equilibrium_displacement
         self._state = np.zeros(STATE_SIZE)
         self._state[:5] = (
-            float(time), x_start, self.initial_velocity, self.initial_band_velocity, 0.1 * self.dt
+            float(time),
+            x_start,
+            self.initial_velocity,
+            self.initial_band_velocity,
+            0.1 * self.dt,
         )
         self._state[PARTIAL_T0] = math.nan
+
+    def _check_resolved(self, band_velocity: float) -> None:
+        """ValueError for a band at rest in all but name: 0 < |v| below the velocity tolerance.
+
+        The error control resolves velocities down to its absolute tolerance (`_scales`); a band
+        slower than that sets a relative velocity the integrator cannot see, and the stage solve
+        near v_rel = 0 (where dμ/dv is unbounded) stalls instead of converging. 0 is a band at
+        rest and runs (the mass stays in equilibrium).
+        """
+        resolution = self._scales[1]
+        if 0.0 < abs(band_velocity) < resolution:
+            raise ValueError(
+                f"band velocity {band_velocity!r} m/s is below the velocity the integrator resolves "
+                f"at rtol {self.rtol:g} ({resolution:.2g} m/s); expected 0 (band at rest) or "
+                f"|v| >= {resolution:.2g} m/s"
+            )
 
     @property
     def _scales(self) -> tuple[float, float]:
@@ -195,8 +216,20 @@ class RigIntegrator:
         atol_x, atol_w = self._scales
         self._state[BUDGET] = float(max_attempts)
         status = self._stepper(
-            self._state, band, self.dt, self._rig_array, self._fp, self.rtol, atol_x, atol_w,
-            _A, _A2, _C, _E, out_x, out_w,
+            self._state,
+            band,
+            self.dt,
+            self._rig_array,
+            self._fp,
+            self.rtol,
+            atol_x,
+            atol_w,
+            _A,
+            _A2,
+            _C,
+            _E,
+            out_x,
+            out_w,
         )
         if status not in (OK, BUDGET_SPENT):
             raise IntegrationError(
@@ -206,9 +239,7 @@ class RigIntegrator:
         done = int(self._state[COMPLETED])
         return out_x[:done], out_w[:done]
 
-    def _sampled(
-        self, time: np.ndarray, x: np.ndarray, w: np.ndarray, band: np.ndarray
-    ) -> Trajectory:
+    def _sampled(self, time: np.ndarray, x: np.ndarray, w: np.ndarray, band: np.ndarray) -> Trajectory:
         relative = self.rig.relative_velocity(band, w)
         mu = self._evaluator(np.ascontiguousarray(relative), self._fp)[0]  # params already packed
         return Trajectory(

@@ -160,7 +160,14 @@ def _radau_step_py(
     mass, damp, stiff, gamma, normal = rig[0], rig[1], rig[2], rig[3], rig[4]
     slope_vb = (vb1 - vb0) / dt
     vb, wst, g, gw, res, delta, zx, zw = (
-        work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7]
+        work[0],
+        work[1],
+        work[2],
+        work[3],
+        work[4],
+        work[5],
+        work[6],
+        work[7],
     )
     for i in range(3):
         vb[i] = vb0 + slope_vb * (t + cc[i] * h - t0)
@@ -179,7 +186,7 @@ def _radau_step_py(
         # sliding: explicit-Euler velocity; stuck: follow the band
         wst[i] = w + (vb[i] - vb_now) / gamma if stuck else w + cc[i] * h * f_w
     converged = False
-    norm_old = math.inf
+    norm_old = -1.0  # no unclamped increment on this step yet: no contraction rate
     for _ in range(_NEWTON_MAXITER):
         for j in range(3):
             xj = x + h * (aa[j, 0] * wst[0] + aa[j, 1] * wst[1] + aa[j, 2] * wst[2])
@@ -219,15 +226,26 @@ def _radau_step_py(
                     clamped = True
             norm = max(norm, abs(new_w - wst[i]) / (atol_w + rtol * abs(new_w)))
             wst[i] = new_w
-        # Stop when the remaining error, estimated from the contraction rate θ of successive
-        # increments (Hairer & Wanner IV.8), is a small fraction of the tolerance.
-        if not clamped:
+        # Stop when the remaining error, estimated from the contraction rate θ = ‖Δ_k‖ / ‖Δ_k−1‖ of
+        # two successive unclamped increments (Hairer & Wanner IV.8), is a small fraction of the
+        # tolerance. θ needs two increments of this step: the first iterate is never accepted on
+        # its own (its size says nothing about the error left), nor the first after a clamped one.
+        if clamped:
+            norm_old = -1.0
+            continue
+        if norm == 0.0:
+            converged = True
+            break
+        if norm_old > 0.0:
             theta = norm / norm_old
-            remaining = norm * theta / (1.0 - theta) if theta < 1.0 else norm
-            if norm <= _NEWTON_TOL or remaining <= _NEWTON_TOL:
+            if theta < 1.0 and norm * theta / (1.0 - theta) <= _NEWTON_TOL:
                 converged = True
                 break
-        norm_old = norm if not clamped else math.inf
+            if theta >= 1.0 and norm <= _NEWTON_TOL:
+                # two increments below the tolerance that no longer contract: rounding noise
+                converged = True
+                break
+        norm_old = norm
     if not converged:
         return False, x, w, math.inf
     for i in range(3):
@@ -313,8 +331,25 @@ def _advance_py(
             last = h >= remaining * (1.0 - 1e-12)
             step = remaining if last else h
             accepted, x_new, w_new, err = _STEP(
-                x, w, t, step, t0, dt, vb_prev, vb_next, rig, fp, rtol, atol_x, atol_w, aa, a2, cc, ee,
-                work, jac,
+                x,
+                w,
+                t,
+                step,
+                t0,
+                dt,
+                vb_prev,
+                vb_next,
+                rig,
+                fp,
+                rtol,
+                atol_x,
+                atol_w,
+                aa,
+                a2,
+                cc,
+                ee,
+                work,
+                jac,
             )
             if math.isfinite(err):
                 factor = 0.9 * err ** (-0.25) if err > 0.0 else _MAX_FACTOR
@@ -452,7 +487,5 @@ def advance(
     state (STATE_SIZE values, layout above) is updated in place; rig = [m, c, k, γ, N].
     """
     return int(
-        specialize(kernel)[0](
-            state, band, dt, rig, fp, rtol, atol_x, atol_w, _A, _A2, _C, _E, out_x, out_w
-        )
+        specialize(kernel)[0](state, band, dt, rig, fp, rtol, atol_x, atol_w, _A, _A2, _C, _E, out_x, out_w)
     )

@@ -169,6 +169,8 @@ def mu_velocity_figure(
     ax = fig.subplots()
     if reverses:
         reach = PAD_FACTOR * float(np.max(np.abs(v)))
+        if reach == 0.0:  # v_rel ≡ 0 (band and mass at rest): show the curve around the stick velocity
+            reach = PAD_FACTOR * (peak.velocity if peak is not None else 1.0)
         linthresh = peak.velocity if peak is not None and peak.velocity < reach else reach * 1e-3
         # each side padded from its own extreme (at least to the stick velocity)
         lo = -max(PAD_FACTOR * float(max(-v.min(), 0.0)), 2.0 * linthresh)
