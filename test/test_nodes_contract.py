@@ -17,9 +17,6 @@ def test_nodes_declare_the_contract_parameters(procs, probe):
         listed = probe.call(ListParameters, f"{NS}/{node}/list_parameters", ListParameters.Request(), 120)
         names = set(listed.result.names) - STANDARD
         expected = {p.name for p in specs if "<" not in p.name}
-        if node == "belt_drive":  # profile.<field>: one parameter per profile field (core)
-            assert {n for n in names if n.startswith("profile.")} > {"profile.kind"}
-            names = {n for n in names if not n.startswith("profile.") or n == "profile.kind"}
         assert names == expected, (node, sorted(names ^ expected))
         described = probe.call(
             DescribeParameters,
@@ -27,8 +24,8 @@ def test_nodes_declare_the_contract_parameters(procs, probe):
             DescribeParameters.Request(names=sorted(expected)),
         )
         for d in described.descriptors:
-            if d.name.startswith("profile."):
-                continue  # declared with the core profile classes' own text (belt_drive)
+            if d.name == "profile.kind":
+                continue  # described with the registered kinds (core.profiles), extensions included
             spec = contract.parameter(node, d.name)
             assert d.description.startswith(spec.description), (node, d.name)
             assert d.read_only == spec.read_only, (node, d.name)

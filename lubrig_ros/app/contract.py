@@ -1,6 +1,7 @@
 """The rig's ROS interface as data: topics, services, QoS and node parameters (no ROS import).
 
-Every other place derives from this module: the nodes create their publishers, subscriptions,
+The node parameters live in app/node_parameters.py and are re-exported here. Every other place
+derives from this module: the nodes create their publishers, subscriptions,
 services and parameters from it, the recorder and replay take their topic list and QoS from it,
 and the tables in README.md, docs/topics.md and docs/nodes.md are generated from it
 (lubrig_ros/app/contract_docs.py; test/test_contract.py keeps them in sync).
@@ -18,35 +19,54 @@ turn them into rclpy objects (nodes/interfaces.py).
 
 from __future__ import annotations
 
-import math
 import re
-from dataclasses import dataclass, fields, replace
-from functools import cache
-from typing import Any, Literal
+from dataclasses import dataclass, replace
+from typing import Literal
 
-from ..core.friction_laws import DEFAULT_LAW, law_parameters
-from ..core.params import CONVENTIONS, RIG_RANGES, ParameterError
+from ..core.params import ParameterError
+from .node_parameters import ANALYSIS_PARAMETERS as ANALYSIS_PARAMETERS
+from .node_parameters import BAND_VELOCITY_LIMIT as BAND_VELOCITY_LIMIT
+from .node_parameters import BELT_DRIVE_PARAMETERS as BELT_DRIVE_PARAMETERS
+from .node_parameters import DEFAULT_BLOCK_LENGTH as DEFAULT_BLOCK_LENGTH
+from .node_parameters import DEFAULT_FLOW_WINDOW as DEFAULT_FLOW_WINDOW
+from .node_parameters import DEFAULT_LAG_POLICY as DEFAULT_LAG_POLICY
+from .node_parameters import DEFAULT_LOOKAHEAD as DEFAULT_LOOKAHEAD
+from .node_parameters import DEFAULT_MAX_LAG as DEFAULT_MAX_LAG
+from .node_parameters import DEFAULT_OUTPUT_BLOCK_LENGTH as DEFAULT_OUTPUT_BLOCK_LENGTH
+from .node_parameters import DEFAULT_REALTIME_PRIORITY as DEFAULT_REALTIME_PRIORITY
+from .node_parameters import DEFAULT_TICK_STEP_ATTEMPTS as DEFAULT_TICK_STEP_ATTEMPTS
+from .node_parameters import FRICTION_FIELDS as FRICTION_FIELDS
+from .node_parameters import FRICTION_LAW as FRICTION_LAW
+from .node_parameters import LAG_POLICIES as LAG_POLICIES
+from .node_parameters import MAX_BLOCK_LENGTH as MAX_BLOCK_LENGTH
+from .node_parameters import MAX_FLOW_WINDOW as MAX_FLOW_WINDOW
+from .node_parameters import MODES as MODES
+from .node_parameters import NODE_PARAMETERS as NODE_PARAMETERS
+from .node_parameters import PLANT_PARAMETERS as PLANT_PARAMETERS
+from .node_parameters import PROFILE_PARAMETERS as PROFILE_PARAMETERS
+from .node_parameters import REALTIME_PRIORITY as REALTIME_PRIORITY
+from .node_parameters import RECORDER_PARTICIPANT as RECORDER_PARTICIPANT
+from .node_parameters import RIG_FIELDS as RIG_FIELDS
+from .node_parameters import RUN_SELECTION as RUN_SELECTION
+from .node_parameters import WAIT_FOR_SUBSCRIBER as WAIT_FOR_SUBSCRIBER
+from .node_parameters import NodeParameter as NodeParameter
+from .node_parameters import ParameterType as ParameterType
+from .node_parameters import friction_fields as friction_fields
+from .node_parameters import friction_parameters as friction_parameters
+from .node_parameters import parameter as parameter
+from .node_parameters import plant_parameters as plant_parameters
+from .node_parameters import profile_parameter as profile_parameter
 
 DEFAULT_NAMESPACE = "/lubrig"
 #: Longest namespace ROS 2 accepts (rmw: RMW_NAMESPACE_MAX_NAME_LENGTH; measured with rclpy: 245).
 NAMESPACE_MAX_LENGTH = 245
-MODES: tuple[str, ...] = ("sim", "lockstep", "realtime", "rig_in_loop")
 #: Modes whose rig time is the plant's own (advanced by band input), not the wall clock.
 STEPPED_MODES: tuple[str, ...] = ("sim", "lockstep")
-#: What a wall-clock plant does once it is more than max_lag behind real time (app/plant_session.py).
-LAG_POLICIES: tuple[str, ...] = ("skip", "stop")
-DEFAULT_LAG_POLICY = "skip"
-#: s: lateness a wall-clock plant catches up on before it has not held real time.
-DEFAULT_MAX_LAG = 0.02
-#: Samples per state_block in the wall-clock modes (1 kHz: 50 blocks per second).
-DEFAULT_OUTPUT_BLOCK_LENGTH = 20
 #: Exit status of a wall-clock plant (and `lubrig rig`) whose run did not hold real time.
 EXIT_REAL_TIME_NOT_HELD = 3
 #: Exit status of a stepped-mode plant (sim, lockstep) whose run ended on a sample that could
 #: not be integrated (app/plant_session.py, "Integration failure"); `lubrig rig` ends with it.
 EXIT_INTEGRATION_FAILED = 4
-#: Band samples belt_drive sends ahead of the realtime plant (its flow_progress).
-DEFAULT_LOOKAHEAD = 200
 
 # ----------------------------------------------------------------------------------- names
 
@@ -336,122 +356,6 @@ def select_topics(namespace: str, names: list[str] | tuple[str, ...] | None) -> 
     return selected
 
 
-# ------------------------------------------------------------------------------ parameters
-
-ParameterType = Literal["double", "integer", "string", "bool", "string_array"]
-
-
-@dataclass(frozen=True)
-class NodeParameter:
-    """One ROS parameter of a node.
-
-    `default` None means "from the selected run configuration" (`from_config` names the field);
-    `low`/`high` bound numbers (`low_open`: strictly greater than low); `choices` lists the
-    valid strings; `read_only` parameters are fixed at start-up, the others may be set at run time.
-    """
-
-    name: str
-    type: ParameterType
-    default: Any
-    description: str
-    unit: str = ""
-    low: float | None = None
-    high: float | None = None
-    low_open: bool = False
-    choices: tuple[str, ...] = ()
-    read_only: bool = True
-    from_config: str = ""
-
-    def expected(self) -> str:
-        """What is valid, in words (used in error messages and the docs)."""
-        unit = f" {self.unit}" if self.unit and self.unit not in ("1", "SI") else ""
-        if self.choices:
-            return f"one of {list(self.choices)}"
-        if self.type == "string":
-            return "a string"
-        if self.type == "string_array":
-            return "a list of strings"
-        if self.type == "bool":
-            return "true or false"
-        number = "an integer" if self.type == "integer" else "a finite number"
-        if self.low is not None and self.high is not None:
-            return f"{_num(self.low)}..{_num(self.high)}{unit}"
-        if self.low is not None:
-            return f"{number} {'>' if self.low_open else '>='} {_num(self.low)}{unit}"
-        if self.high is not None:
-            return f"{number} <= {_num(self.high)}{unit}"
-        return number
-
-    def check(self, value: Any) -> Any:
-        """Return `value` if valid for this parameter, else ParameterError naming value and range."""
-        bad = ParameterError(f"{self.name}={value!r} is not valid; expected {self.expected()}")
-        if self.type in ("double", "integer"):
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise bad
-            if self.type == "integer" and not isinstance(value, int):
-                raise bad
-            if not math.isfinite(value):
-                raise bad
-            if self.low is not None and (value < self.low or (self.low_open and value <= self.low)):
-                raise bad
-            if self.high is not None and value > self.high:
-                raise bad
-        elif self.type == "string":
-            if not isinstance(value, str) or (self.choices and value not in self.choices):
-                raise bad
-        elif self.type == "string_array":
-            if isinstance(value, str) or not isinstance(value, list | tuple):
-                raise bad
-            if not all(isinstance(v, str) for v in value):
-                raise bad
-        elif not isinstance(value, bool):
-            raise bad
-        return value
-
-
-def _num(x: float) -> str:
-    return str(int(x)) if float(x).is_integer() and abs(x) < 1e6 else f"{x:g}"
-
-
-def _p(name: str, type_: ParameterType, default: Any, text: str, **kw: Any) -> NodeParameter:
-    return NodeParameter(name, type_, default, text, **kw)
-
-
-#: Run selection, shared by the three rig nodes (the launcher passes config_file).
-RUN_SELECTION: tuple[NodeParameter, ...] = (
-    _p("case", "integer", 0, "study case 1..10 (0: use config_file or the default)"),
-    _p("config_file", "string", "",
-       "run configuration YAML (the launcher passes the resolved run's file; empty: default)"),
-    _p("topic_namespace", "string", "",
-       "deprecated, must stay empty: topics and services follow the node namespace "
-       "(--ros-args -r __ns:=/rig2, launch namespace=); a value other than the node's namespace "
-       "is refused at start"),
-)
-WAIT_FOR_SUBSCRIBER = _p(
-    "wait_for_subscriber", "string", "",
-    "hold the run until a node whose name starts with this (e.g. the recorder, 'lubrig_recorder') "
-    "subscribes to every output topic (sim, lockstep) or to state_block (realtime, rig_in_loop: "
-    "the loop starts then); empty = do not wait",
-)
-DEFAULT_REALTIME_PRIORITY = 50
-REALTIME_PRIORITY = _p(
-    "realtime_priority", "integer", DEFAULT_REALTIME_PRIORITY,
-    "realtime, rig_in_loop: SCHED_FIFO priority 1..99 of the plant's loop thread alone (where "
-    "the process may; otherwise a warning and normal scheduling), and a CPU wake-up latency "
-    "request of 0 (/dev/cpu_dma_latency, where writable); 0 keeps normal scheduling",
-    low=0, high=99,
-)
-#: Band samples per BandVelocityBlock (sim); measured: docs/nodes.md "Block length".
-DEFAULT_BLOCK_LENGTH = 250
-MAX_BLOCK_LENGTH = 10_000
-#: Band samples belt_drive may send beyond the slowest participant (sim).
-DEFAULT_FLOW_WINDOW = 1000
-MAX_FLOW_WINDOW = 1_000_000
-#: Node name of the recorder's flow-progress participant, in the rig's namespace (`lubrig rig`
-#: adds it to belt_drive's required_consumers when it records).
-RECORDER_PARTICIPANT = "lubrig_recorder"
-
-
 def flow_window_problem(flow_window: int, block_length: int) -> str | None:
     """Why this window could lose blocks with this block length, or None.
 
@@ -467,215 +371,3 @@ def flow_window_problem(flow_window: int, block_length: int) -> str | None:
             f"{BLOCK_QOS.depth} minus 2) may be in flight without a risk of losing a block"
         )
     return None
-
-
-#: Largest |band velocity| the plant accepts from the band topic, m/s.
-BAND_VELOCITY_LIMIT = 1e-2
-
-RIG_FIELDS: tuple[str, ...] = ("mass", "natural_frequency", "damping_ratio")
-RIG_UNITS = {"mass": "kg", "natural_frequency": "Hz", "damping_ratio": "1", "normal_force": "N"}
-#: Units of the friction laws' fields (a field not listed here is documented as "SI").
-FRICTION_UNITS = {
-    # junction kinetics (core/params.py FrictionParameters)
-    "shear_modulus": "Pa", "interface_thickness": "m", "interpenetration_thickness": "m",
-    "yield_distance": "m", "thermal_break_time": "s", "reference_activation_time": "s",
-    "reference_velocity": "m/s", "activation_exponent": "1", "reference_viscosity": "Pa·s",
-    "shear_thinning_exponent": "1", "contact_area": "m²", "normal_force": "N",
-    # Stribeck (core/stribeck.py StribeckParameters)
-    "static_coefficient": "1", "kinetic_coefficient": "1", "stribeck_velocity": "m/s",
-    "stribeck_exponent": "1", "viscous_coefficient": "s/m", "regularization_velocity": "m/s",
-}
-
-
-def friction_fields(law: str = DEFAULT_LAW) -> tuple[str, ...]:
-    """The fields of friction law `law`'s parameter dataclass (core.friction_laws registry), in order.
-
-    ParameterError naming the valid laws for an unknown one.
-    """
-    return tuple(f.name for f in fields(law_parameters(law)))
-
-
-#: The default (junction-kinetics) law's fields.
-FRICTION_FIELDS: tuple[str, ...] = friction_fields(DEFAULT_LAW)
-
-FRICTION_LAW = _p(
-    "friction.law", "string", None,
-    "friction law of the run (core.friction_laws: junction_kinetics, stribeck or a registered "
-    "one); the plant's friction.<field> parameters are this law's fields",
-    from_config="rig.friction.law",
-)
-
-
-def friction_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
-    """The plant's `friction.<field>` parameters of law `law` (normal_force is rig.normal_force)."""
-    return tuple(
-        _p(f"friction.{n}", "double", None, f"friction law {n}; applied at the next reset",
-           unit=FRICTION_UNITS.get(n, "SI"), read_only=False, from_config=f"rig.friction.{n}")
-        for n in friction_fields(law)
-        if n != "normal_force"
-    )
-
-
-#: Realtime plant: step attempts per tick. One sample of physical-convention
-#: stick-slip at rtol 1e-12 needs up to about 610 (accepted and rejected, 30 s of case 1 and of
-#: the default rig); 2000 leaves room for those and bounds a tick at about 4 ms (about 2 µs an
-#: attempt on a quiet machine: 61 substeps took 0.13 ms), more under load.
-DEFAULT_TICK_STEP_ATTEMPTS = 2000
-
-
-@cache
-def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
-    """Every parameter of a plant whose run uses friction law `law`.
-
-    The friction parameters derive from the law's parameter dataclass, so a run configuration
-    with `friction: {law: stribeck, ...}` gets `friction.static_coefficient` etc.
-    """
-    return (
-        *RUN_SELECTION,
-        _p("mode", "string", "sim", " | ".join(MODES), choices=MODES),
-        _p("sample_rate", "double", None, "output rate", unit="Hz", low=0.0, low_open=True,
-           from_config="simulation.sample_rate"),
-        _p("duration", "double", None,
-           "run length in rig time (sim mode; wall-clock modes: with exit_when_complete)", unit="s",
-           low=0.0, low_open=True, from_config="simulation.duration"),
-        _p("rtol", "double", None, "integrator relative tolerance; applied at the next reset",
-           low=1e-13, high=1e-2, read_only=False, from_config="simulation.rtol"),
-        _p("initial_perturbation", "double", None, "x(0) = (1 + this) x0; applied at the next reset",
-           read_only=False, from_config="simulation.initial_perturbation"),
-        _p("convention", "string", None,
-           "physical | paper | hertz (γ = 1, 1/ω0, 1/f0); empty: the run configuration's; applied "
-           "at the next reset", choices=("", *CONVENTIONS), read_only=False,
-           from_config="rig.convention"),
-        _p("velocity_coupling", "double", None,
-           "explicit γ in v_rel = v_band − γ ẋ, overriding the convention; 0: the convention's γ; "
-           "applied at the next reset", low=0.0, read_only=False, from_config="rig.velocity_coupling"),
-        *(
-            _p(f"rig.{n}", "double", None, f"rig {n}; applied at the next reset", unit=RIG_UNITS[n],
-               read_only=False, from_config=f"rig.{n}", low=RIG_RANGES[n][0], high=RIG_RANGES[n][1])
-            for n in RIG_FIELDS
-        ),
-        _p("rig.normal_force", "double", None, "normal force N; applied at the next reset", unit="N",
-           read_only=False, from_config="rig.friction.normal_force",
-           low=RIG_RANGES["normal_force"][0], high=RIG_RANGES["normal_force"][1]),
-        FRICTION_LAW,
-        *friction_parameters(law),
-        _p("band_velocity_limit", "double", BAND_VELOCITY_LIMIT,
-           "largest accepted |v_band|; NaN/inf and larger values are rejected", unit="m/s", low=0.0,
-           low_open=True),
-        _p("stale_timeout", "double", 0.05, "time without good band input before the input is stale",
-           unit="s", low=0.0, low_open=True),
-        _p("tick_step_attempts", "integer", DEFAULT_TICK_STEP_ATTEMPTS,
-           "realtime: integrator step attempts per call of the tick; a sample that needs more is "
-           "an overrun, finished by further calls (the loop stays responsive, stop/pause/reset "
-           "and diagnostics run between them) instead of blocking it", unit="attempts", low=1,
-           high=1_000_000),
-        _p("lag_policy", "string", DEFAULT_LAG_POLICY,
-           "realtime, rig_in_loop: once more than max_lag behind real time, skip (keep real time: "
-           "integrate the overdue samples with the band values known for them, publish none of "
-           "them, declare the gap in the next state_block) or stop (no more output); ERROR either "
-           "way, and the node exits with status 3 (app/plant_session.py)", choices=LAG_POLICIES),
-        _p("max_lag", "double", DEFAULT_MAX_LAG,
-           "realtime, rig_in_loop: lateness of a sample the plant catches up on; beyond it the rig "
-           "has not held real time (lag_policy)", unit="s", low=0.0, low_open=True, high=10.0),
-        _p("output_block_length", "integer", DEFAULT_OUTPUT_BLOCK_LENGTH,
-           "realtime, rig_in_loop: samples per state_block (the recorder, analysis and live view "
-           "take these; state stays one message per sample)", unit="samples", low=1, high=10_000),
-        _p("state_per_sample", "bool", True,
-           "realtime, rig_in_loop, lockstep: also publish one state (RigState) per sample, for rig "
-           "software in the loop; wall-clock modes: only while the topic has a subscriber (about "
-           "80 us per sample for the plant's loop)"),
-        WAIT_FOR_SUBSCRIBER,
-        _p("band_source", "string", "",
-           "the declared band source: node name (in the plant's namespace) or fully qualified name "
-           "of the one publisher of band input (the launchers: belt_drive); any other publisher "
-           "is reported (band sources WARN, naming it); empty: any one publisher"),
-        REALTIME_PRIORITY,
-        _p("diagnostics_period", "double", 1.0, "time between /diagnostics", unit="s", low=0.0,
-           low_open=True),
-        _p("publish_clock", "bool", False,
-           "sim: publish rig time on the global /clock (one per block + 5 Hz heartbeat); one "
-           "owner per ROS domain: the launcher turns it on for a single rig only"),
-        _p("exit_when_complete", "bool", False,
-           "end the node once its run is over, exit status 0 (3 if a wall-clock run did not hold "
-           "real time): sim, lockstep once run_complete is true; realtime, rig_in_loop once the "
-           "sample at `duration` (counted from the first sample) is published; launch/rig.launch.py "
-           "sets it, `lubrig rig` stops the nodes itself"),
-        _p("scalar_topics", "bool", False,
-           "also publish displacement, velocity and friction_coefficient as std_msgs/Float64, one "
-           "message per sample (about 3 x 37 us per sample for the plant, and the same per "
-           "subscriber: sim mode falls from block to sample speed)"),
-    )
-
-
-#: The plant's parameters with the default (junction-kinetics) law (plant_parameters(law) for another).
-PLANT_PARAMETERS: tuple[NodeParameter, ...] = plant_parameters(DEFAULT_LAW)
-
-BELT_DRIVE_PARAMETERS: tuple[NodeParameter, ...] = (
-    *RUN_SELECTION,
-    _p("mode", "string", "sim", "sim | realtime", choices=("sim", "realtime")),
-    _p("sample_rate", "double", None, "output rate", unit="Hz", low=0.0, low_open=True,
-       from_config="simulation.sample_rate"),
-    _p("duration", "double", None, "run length (sim mode)", unit="s", low=0.0, low_open=True,
-       from_config="simulation.duration"),
-    _p("block_length", "integer", DEFAULT_BLOCK_LENGTH,
-       "sim: band samples per band_velocity_block message (the plant answers with one state_block "
-       "per block); results do not depend on it", unit="samples", low=1, high=MAX_BLOCK_LENGTH),
-    _p("flow_window", "integer", DEFAULT_FLOW_WINDOW,
-       "sim: band samples the drive may send beyond the slowest of the plant and the required "
-       "consumers (flow_progress); at most (BLOCK_QOS depth - 2) x block_length",
-       unit="samples", low=1, high=MAX_FLOW_WINDOW),
-    _p("required_consumers", "string_array", (),
-       "sim: nodes (fully qualified, or relative to the drive's namespace) whose flow_progress "
-       "paces the drive besides the plant's; it starts once each has reported (e.g. "
-       "['lubrig_recorder'], set by `lubrig rig` when recording)"),
-    _p("plant_node", "string", "plant",
-       "sim: the plant's node name (relative to the drive's namespace, or absolute) whose "
-       "flow_progress sets the segment and paces the drive"),
-    _p("start_delay", "double", 0.5, "wall time to wait once the plant is seen (discovery)", unit="s",
-       low=0.0, high=60.0),
-    _p("lookahead", "integer", DEFAULT_LOOKAHEAD,
-       "realtime: band samples sent ahead of the plant's flow_progress, each with its sample index",
-       unit="samples", low=1, high=MAX_BLOCK_LENGTH),
-    _p("band_velocity_limit", "double", BAND_VELOCITY_LIMIT,
-       "the plant's band_velocity_limit: a profile whose |v_band| exceeds it over the run (the plant "
-       "would reject those samples and the run stall) is refused, at start and at run time",
-       unit="m/s", low=0.0, low_open=True),
-    WAIT_FOR_SUBSCRIBER,
-    _p("profile.kind", "string", None, "band profile kind (constant | cycle | sine | table); run time",
-       read_only=False, from_config="band.kind"),
-    _p("profile.<field>", "double", None,
-       "the fields of the profile kinds (core.profiles: velocity; low_velocity, high_velocity, "
-       "plateau_time, ramp_time; mean_velocity, amplitude, frequency, phase) and profile.path "
-       "(string, table CSV); run time, validated by the core profile classes",
-       read_only=False, from_config="band.<field>"),
-)
-
-ANALYSIS_PARAMETERS: tuple[NodeParameter, ...] = (
-    *RUN_SELECTION,
-    _p("convention", "string", "", "physical | paper | hertz (empty: from the configuration)",
-       choices=("", *CONVENTIONS)),
-    _p("window", "integer", 2048, "samples in the sliding wavelet window", low=64),
-    _p("n_scales", "integer", 32, "wavelet scales", low=2, high=256),
-    _p("publish_period", "double", 0.2, "wall time between analysis updates", unit="s", low=0.01,
-       high=60.0),
-    _p("image_width", "integer", 256, "pixels of wavelet_image", low=8, high=4096),
-    _p("max_columns", "integer", 64, "newest power columns per wavelet_power message", low=1),
-    _p("per_sample_input", "bool", False,
-       "also take <ns>/state (RigState, one message per sample) for a plant that publishes no "
-       "state_block; the lubrig plant publishes state_block in every mode (1 kHz of RigState "
-       "costs this node about a fifth of a core)"),
-)
-
-NODE_PARAMETERS: dict[str, tuple[NodeParameter, ...]] = {
-    "belt_drive": BELT_DRIVE_PARAMETERS,
-    "plant": PLANT_PARAMETERS,
-    "analysis": ANALYSIS_PARAMETERS,
-}
-
-
-def parameter(node: str, name: str) -> NodeParameter:
-    """The contract's parameter `name` of `node`; KeyError naming the valid ones."""
-    for p in NODE_PARAMETERS[node]:
-        if p.name == name:
-            return p
-    raise KeyError(f"{node} has no parameter {name!r}; valid: {[p.name for p in NODE_PARAMETERS[node]]}")

@@ -9,6 +9,7 @@ reports.
 from __future__ import annotations
 
 import argparse
+import math
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -20,11 +21,21 @@ from .common import parse_finite
 __all__ = ["MAX_POWER_POINTS", "analyze_run", "register"]
 
 
-def _number(text: str, option: str, low: float = 0.0, inclusive: bool = True) -> float:
+#: Ranges of the analysis options: a scale step finer than 1/64 octave or a frequency outside
+#: 1e-9 … 1e6 Hz gives more scales than any record can hold (or none), and more than 100
+#: listed components is not a list any more.
+DJ_RANGE = (1.0 / 64.0, 1.0)
+FREQUENCY_RANGE = (1e-9, 1e6)
+MAX_COMPONENTS = 100
+
+
+def _number(
+    text: str, option: str, low: float = 0.0, inclusive: bool = True, high: float = math.inf
+) -> float:
     sign = ">=" if inclusive else ">"
-    what = f"a finite number {sign} {low:g}"
+    what = f"a finite number {sign} {low:g}" + (f" and <= {high:g}" if math.isfinite(high) else "")
     value = parse_finite(option, text, what)
-    if not (value >= low if inclusive else value > low):
+    if not (value >= low if inclusive else value > low) or value > high:
         raise ValueError(f"{option} {text!r} is not valid; expected {what}")
     return value
 
@@ -57,7 +68,8 @@ def analyze_run(
     from ..figures import style
 
     title = style.run_title(
-        str(summary.get("name", directory.name)), style.summary_coupling(summary),
+        str(summary.get("name", directory.name)),
+        style.summary_coupling(summary),
         "Displacement and its wavelet power",
     )
     fig = analysis_figure(analysis, title, summary.get("natural_frequency_hz"))
@@ -68,10 +80,21 @@ def analyze_run(
 
 def _run(args: argparse.Namespace) -> int:
     start = _number(args.start, "--start")
-    dj = _number(args.dj, "--dj", inclusive=False)
-    fmin = None if args.fmin is None else _number(args.fmin, "--fmin", inclusive=False)
-    fmax = None if args.fmax is None else _number(args.fmax, "--fmax", inclusive=False)
-    n = int(_number(args.components, "--components", 1.0))
+    dj = _number(args.dj, "--dj", *DJ_RANGE[:1], high=DJ_RANGE[1])
+    fmin = (
+        None
+        if args.fmin is None
+        else _number(args.fmin, "--fmin", FREQUENCY_RANGE[0], high=FREQUENCY_RANGE[1])
+    )
+    fmax = (
+        None
+        if args.fmax is None
+        else _number(args.fmax, "--fmax", FREQUENCY_RANGE[0], high=FREQUENCY_RANGE[1])
+    )
+    components = _number(args.components, "--components", 1.0, high=MAX_COMPONENTS)
+    if not components.is_integer():
+        raise ValueError(f"--components {args.components!r} is not an integer; expected 1..{MAX_COMPONENTS}")
+    n = int(components)
     section = analyze_run(Path(args.dir), start, dj, fmin, fmax, n)
     print(f"wrote {Path(args.dir) / 'wavelet.png'}; dominant frequencies:")
     for item in section["dominant_frequencies"]:
@@ -88,10 +111,17 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("dir", help="directory written by `lubrig simulate`")
     parser.add_argument("--start", default="0", help="skip this transient, s (default 0: whole record)")
-    parser.add_argument("--dj", default=str(DEFAULT_POLICY.dj), help="scale step, octaves (1/12)")
-    parser.add_argument("--fmin", default=None, help="lowest frequency, Hz (3 / analysed duration)")
-    parser.add_argument("--fmax", default=None, help="highest frequency, Hz (rate / 4)")
     parser.add_argument(
-        "--components", default=str(DEFAULT_POLICY.n_components), help="dominant frequencies listed (5)"
+        "--dj",
+        default=str(DEFAULT_POLICY.dj),
+        help=f"scale step, octaves (1/12; {DJ_RANGE[0]:g}..{DJ_RANGE[1]:g})",
+    )
+    freq = f"{FREQUENCY_RANGE[0]:g}..{FREQUENCY_RANGE[1]:g} Hz"
+    parser.add_argument("--fmin", default=None, help=f"lowest frequency, Hz (3 / analysed duration; {freq})")
+    parser.add_argument("--fmax", default=None, help=f"highest frequency, Hz (rate / 4; {freq})")
+    parser.add_argument(
+        "--components",
+        default=str(DEFAULT_POLICY.n_components),
+        help=f"dominant frequencies listed (5; 1..{MAX_COMPONENTS})",
     )
     parser.set_defaults(func=_run)

@@ -24,6 +24,11 @@ def _problem_line(v: Verification) -> str:
     return f"{v.verdict()}; run `lubrig bag repair {v.bag}`"
 
 
+def _unreadable(v: Verification) -> bool:
+    text = v.problems[0].text
+    return "does not exist" in text or "not a bag" in text
+
+
 def _print_streams(v: Verification) -> None:
     if not v.streams:
         return
@@ -42,6 +47,8 @@ def _print_problems(v: Verification) -> None:
 
 def _check(args: argparse.Namespace) -> int:
     v = verify_bag(args.bag, full=True)
+    if v.problems and _unreadable(v):  # not a bag at all: exit status 2, as for info
+        raise ValueError(_problem_line(v))
     _print_streams(v)
     _print_problems(v)
     if v.problems:

@@ -7,11 +7,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
 from pathlib import Path
 
 from ..app.selection import RunSelection
+from ..core import schema
 from ..core.profiles import BandProfile, ConstantBand, RegularCycle, TableBand
+from ..core.schema import FieldSpec
 
 # argparse (Python < 3.13) takes "-1e-7" for an option; accept any signed float literal as a value.
 NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|nan)$", re.IGNORECASE)
@@ -25,6 +28,22 @@ def parse_finite(option: str, text: str, what: str) -> float:
         raise ValueError(f"{option} {text!r} is not a number; expected {what}") from None
     if not math.isfinite(value):
         raise ValueError(f"{option} {text!r} is not finite; expected {what}")
+    return value
+
+
+#: Local worker processes at most (--workers): a few per core; more only thrash the machine.
+MAX_LOCAL_WORKERS = 4 * (os.cpu_count() or 1)
+
+
+def parse_workers(text: str, option: str = "--workers") -> int:
+    """A local worker count: an integer 1..MAX_LOCAL_WORKERS."""
+    what = f"an integer 1..{MAX_LOCAL_WORKERS} (4 per core of this machine)"
+    try:
+        value = int(text)
+    except ValueError:
+        raise ValueError(f"{option} {text!r} is not an integer; expected {what}") from None
+    if not 1 <= value <= MAX_LOCAL_WORKERS:
+        raise ValueError(f"{option} {value} is not valid; expected {what}")
     return value
 
 
@@ -62,12 +81,29 @@ def add_run_source(parser: argparse.ArgumentParser) -> None:
     source.add_argument("--config", metavar="FILE", help="run configuration YAML (see config/)")
 
 
+def _ranged(text: str, spec: FieldSpec) -> str:
+    """Help text with the field's physical range (core/schema.py)."""
+    return f"{text}; physical range {spec.range_text()}"
+
+
 def add_run_selection(parser: argparse.ArgumentParser) -> None:
-    """Options that choose and override a run (`lubrig simulate`)."""
+    """Options that choose and override a run (`lubrig simulate`); help shows each range."""
     add_run_source(parser)
+    rig, sim = schema.RIG_FIELDS, schema.SIMULATION_FIELDS
+    cycle = schema.BAND_FIELDS["cycle"]
     band = parser.add_mutually_exclusive_group()
-    band.add_argument("--band-velocity", metavar="V", help="constant band velocity, m/s")
-    band.add_argument("--cycle", nargs=4, metavar=("V1", "V2", "TC", "TRAMP"), help="study band cycle")
+    band.add_argument(
+        "--band-velocity",
+        metavar="V",
+        help=_ranged("constant band velocity, m/s", schema.band_field("velocity")),  # type: ignore[arg-type]
+    )
+    band.add_argument(
+        "--cycle",
+        nargs=4,
+        metavar=("V1", "V2", "TC", "TRAMP"),
+        help=f"study band cycle: V1 < V2 in {cycle['low_velocity'].range_text()}, TC in "
+        f"{cycle['plateau_time'].range_text()}, TRAMP in {cycle['ramp_time'].range_text()}",
+    )
     band.add_argument("--profile", metavar="CSV", help="table of time_s,band_velocity_m_s (piecewise linear)")
     parser.add_argument(
         "--convention", metavar="C", help="relative-velocity convention: physical | paper | hertz"
@@ -75,16 +111,68 @@ def add_run_selection(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--velocity-coupling",
         metavar="G",
-        help="γ in v_rel = v_band − γ ẋ: physical (1) | paper (1/ω0) | hertz (1/f0) | a number > 0",
+        help=_ranged(
+            "γ in v_rel = v_band − γ ẋ: physical (1) | paper (1/ω0) | hertz (1/f0) | a number",
+            rig["velocity_coupling"],
+        ),
     )
-    parser.add_argument("--zeta", metavar="Z", help="damping ratio ζ")
-    parser.add_argument("--mass", metavar="KG", help="mass m, kg")
-    parser.add_argument("--natural-frequency", metavar="HZ", help="natural frequency f0, Hz")
-    parser.add_argument("--contact-area", metavar="A", help="corrected | printed | area in m²")
-    parser.add_argument("--duration", metavar="S", help="rig time to simulate, s")
-    parser.add_argument("--sample-rate", metavar="HZ", help="output sample rate, Hz (default 1000)")
-    parser.add_argument("--rtol", metavar="R", help="integrator relative tolerance (default 1e-12)")
+    parser.add_argument("--zeta", metavar="Z", help=_ranged("damping ratio ζ", rig["damping_ratio"]))
+    parser.add_argument("--mass", metavar="KG", help=_ranged("mass m, kg", rig["mass"]))
+    parser.add_argument(
+        "--natural-frequency",
+        metavar="HZ",
+        help=_ranged("natural frequency f0, Hz", rig["natural_frequency"]),
+    )
+    area = schema.friction_field("junction_kinetics", "contact_area")
+    parser.add_argument(
+        "--contact-area",
+        metavar="A",
+        help=_ranged("corrected | printed | area in m²", area),  # type: ignore[arg-type]
+    )
+    parser.add_argument("--duration", metavar="S", help=_ranged("rig time to simulate, s", sim["duration"]))
+    parser.add_argument(
+        "--sample-rate",
+        metavar="HZ",
+        help=_ranged("output sample rate, Hz (default 1000)", sim["sample_rate"]),
+    )
+    parser.add_argument("--rtol", metavar="R", help=_ranged("integrator relative tolerance", sim["rtol"]))
     allow_negative_numbers(parser)
+
+
+#: Memory `lubrig simulate` needs per output sample, bytes: the trajectory's six float64 columns,
+#: the summary's and figures' temporaries and the CSV rows (a generous estimate, not a measurement
+#: of one run: the wavelet analysis is bounded on its own, app/analysis.py).
+SIMULATE_BYTES_PER_SAMPLE = 400
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (Linux MemAvailable), None if unknown."""
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def check_fits_in_memory(
+    samples: int, sample_rate: float, bytes_per_sample: int = SIMULATE_BYTES_PER_SAMPLE
+) -> None:
+    """ValueError when a run of `samples` output samples would not fit in the available memory."""
+    free = available_memory()
+    if free is None:
+        return
+    most = int(0.5 * free / bytes_per_sample)  # half of what is free: leave room for the rest
+    if samples > most:
+        raise ValueError(
+            f"{samples} samples need about {samples * bytes_per_sample / 1e9:.3g} GB of memory, this "
+            f"machine has {free / 1e9:.3g} GB available: at most {most} samples (--duration <= "
+            f"{most / sample_rate:g} s at {sample_rate:g} Hz)"
+        )
 
 
 def _number(args: argparse.Namespace, name: str, option: str, what: str) -> float | None:
@@ -123,7 +211,8 @@ def selection_from_args(args: argparse.Namespace) -> RunSelection:
         contact_area=getattr(args, "contact_area", None),
         convention=getattr(args, "convention", None),
         velocity_coupling=(
-            None if getattr(args, "velocity_coupling", None) is None
+            None
+            if getattr(args, "velocity_coupling", None) is None
             else parse_coupling(args.velocity_coupling)
         ),
         damping_ratio=_number(args, "zeta", "--zeta", "a damping ratio >= 0"),

@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from ..core import schema
 from ..core.friction import friction_coefficient, friction_minimum, friction_peak, friction_slope
 from ..core.params import FrictionParameters
 from .common import add_run_source, allow_negative_numbers, parse_finite, source_from_args
@@ -25,9 +26,25 @@ def friction_parameters(base: FrictionParameters, choice: str | None) -> Frictio
     if choice is None:
         return base
     try:
-        return base.with_contact_area(choice)
+        params = base.with_contact_area(choice)
+        spec = schema.friction_field(type(base).law, "contact_area")
+        if spec is not None:
+            spec.check(params.contact_area)
+        return params
     except ValueError as exc:
         raise ValueError(f"--contact-area {choice!r}: {exc}") from None
+
+
+#: --at values per call at most (each is one line of output).
+MAX_POINTS = 10_000
+
+
+def parse_velocities(texts: list[str]) -> list[float]:
+    """The --at sliding velocities: finite (the law is defined for every double), not too many."""
+    if len(texts) > MAX_POINTS:
+        raise ValueError(f"--at has {len(texts)} velocities; at most {MAX_POINTS}")
+    what = "a finite sliding velocity in m/s (negative allowed: μ is odd)"
+    return [parse_finite("--at", text, what) for text in texts]
 
 
 def _json_number(value: float) -> float | None:
@@ -67,10 +84,7 @@ def _print_table(report: dict[str, Any]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Execute `lubrig friction`."""
-    velocities = [
-        parse_finite("--at", text, "a finite sliding velocity in m/s (negative allowed: μ is odd)")
-        for text in (args.at or [])
-    ]
+    velocities = parse_velocities(args.at or [])
     config = source_from_args(args).base()
     params = friction_parameters(config.rig.friction, args.contact_area)
     report = friction_report(params, velocities)

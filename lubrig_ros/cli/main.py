@@ -6,6 +6,7 @@ import argparse
 import importlib
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 # Each module exposes register(subparsers) which adds its parser with set_defaults(func=...).
 SUBCOMMAND_MODULES: tuple[str, ...] = (
@@ -27,6 +28,17 @@ class CommandError(Exception):
     """A user-facing failure: printed as one line, exit status 2."""
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (no usage block), exit status 2.
+
+    Subcommand parsers are of the same class (argparse makes them with the parent's class).
+    """
+
+    def error(self, message: str) -> NoReturn:
+        """Print `<prog>: error: <message>` and exit with status 2."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The `lubrig` argument parser: every subcommand, or only `only` (its module alone imported).
 
@@ -34,9 +46,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     time, so importing all of them costs seconds; a command line that names its subcommand builds
     the parser with that one only.
     """
-    parser = argparse.ArgumentParser(
-        prog="lubrig", description="Virtual lubricated test rig (lubrig_ros)."
-    )
+    parser = OneLineParser(prog="lubrig", description="Virtual lubricated test rig (lubrig_ros).")
     subparsers = parser.add_subparsers(dest="command", required=True)
     for name in SUBCOMMAND_MODULES if only is None else (only,):
         importlib.import_module(f"lubrig_ros.cli.{name}").register(subparsers)

@@ -13,9 +13,10 @@ from pathlib import Path
 
 from ..app.rundir import prepare_output_dir
 from ..app.study_runs import read_scan_csv, write_scan_csv
-from ..core.presets import config_dir
+from ..core.presets import config_dir, default_config
+from ..core.schema import SIMULATION_FIELDS
 from ..report.paper import HTML_PAGE, MIN_DURATION, PAGE_OUTPUTS, copy_to_docs, run_paper, total_rig_time
-from .common import add_force, parse_finite
+from .common import add_force, check_fits_in_memory, parse_finite, parse_workers
 from .progress import Progress
 
 SCAN_TABLE = "coupling_scan.csv"
@@ -31,9 +32,10 @@ def run(args: argparse.Namespace) -> int:
     duration = parse_finite("--duration", args.duration, "a rig time in s (>= 4)")
     if duration < MIN_DURATION:
         raise ValueError(f"--duration {duration!r} is not valid; expected at least {MIN_DURATION:g} s")
-    out = prepare_output_dir(
-        Path(args.out), args.force, "--out", (*PAGE_OUTPUTS, SCAN_TABLE, "scan")
-    )
+    SIMULATION_FIELDS["duration"].check(duration, "--duration")
+    rate = default_config().sample_rate  # every run of the study samples at the default rate
+    check_fits_in_memory(round(duration * rate), rate)
+    out = prepare_output_dir(Path(args.out), args.force, "--out", (*PAGE_OUTPUTS, SCAN_TABLE, "scan"))
     started = time.perf_counter()
     if args.recompute_scan:
         from ..sweep.engine import LOCAL, SERIAL
@@ -41,9 +43,7 @@ def run(args: argparse.Namespace) -> int:
 
         workers = None
         if args.workers is not None:
-            workers = int(parse_finite("--workers", args.workers, "a worker count >= 1"))
-            if workers < 1:
-                raise ValueError(f"--workers {args.workers!r} must be >= 1")
+            workers = parse_workers(args.workers)
         scan = run_scan(out / "scan", scheduler=LOCAL if workers else SERIAL, workers=workers)
         source = f"recomputed in {time.perf_counter() - started:.0f} s"
     else:

@@ -174,7 +174,7 @@ def _plant_options(args: argparse.Namespace, mode: str) -> dict[str, ParameterVa
         if value is not None:
             if mode == "sim":
                 raise CommandError(f"--{option.replace('_', '-')} applies to --mode realtime only")
-            extra[option] = value
+            extra[option] = parameter("plant", option).check(value)  # the plant's own range
     return extra
 
 

@@ -21,13 +21,15 @@ from ..app import rundir
 from ..app.selection import RunSelection
 from ..core.presets import RunConfig
 from ..core.run import simulate, summarize
-from .common import add_force, add_run_selection, selection_from_args
+from .common import add_force, add_run_selection, check_fits_in_memory, selection_from_args
 
 
 def config_from_args(args: argparse.Namespace) -> RunConfig:
     """The run configuration selected and overridden by the command-line options."""
     selection: RunSelection = selection_from_args(args)
-    return selection.resolve()
+    config = selection.resolve()
+    check_fits_in_memory(config.samples, config.sample_rate)
+    return config
 
 
 def run(args: argparse.Namespace) -> int:

@@ -14,14 +14,21 @@ from pathlib import Path
 from typing import Any
 
 from ..core.friction import friction_minimum, friction_peak
-from ..core.params import CONVENTIONS, RigParameters
+from ..core.params import CONVENTIONS, RigParameters, check_rig_ranges
+from ..core.schema import BAND_VELOCITY_LIMIT
 from ..core.stability import critical_damping_ratio, unstable_intervals
 from .common import add_run_source, allow_negative_numbers, parse_coupling, parse_finite, source_from_args
 from .friction import friction_parameters
 
+#: --zeta values per call at most (each is one line of output and one root search).
+MAX_ZETAS = 1000
+
 
 def parse_zeta(text: str) -> float:
-    """One damping ratio from the command line: finite and >= 0."""
+    """One damping ratio from the command line: finite and >= 0.
+
+    Any such ζ: the linear analysis explores far beyond a rig's range (core/schema.py).
+    """
     value = parse_finite("--zeta", text, "a finite damping ratio >= 0")
     if value < 0.0:
         raise ValueError(f"--zeta {text!r} is negative; expected a finite damping ratio >= 0")
@@ -36,9 +43,7 @@ def rig_parameters(
 ) -> RigParameters:
     """The selected run's rig with the convention (or an explicit γ) and contact area overridden."""
     if convention is not None and convention not in CONVENTIONS:
-        raise ValueError(
-            f"--convention {convention!r} is not valid; expected one of {'|'.join(CONVENTIONS)}"
-        )
+        raise ValueError(f"--convention {convention!r} is not valid; expected one of {'|'.join(CONVENTIONS)}")
     rig = replace(
         base,
         convention=base.convention if convention is None else convention,
@@ -47,6 +52,7 @@ def rig_parameters(
     )
     if velocity_coupling is not None:
         rig = replace(rig, velocity_coupling=parse_coupling(velocity_coupling))
+    check_rig_ranges(rig)  # the run's physical ranges (core/schema.py); --zeta may go beyond
     return rig
 
 
@@ -83,13 +89,18 @@ def _print_table(report: dict[str, Any]) -> None:
 def run(args: argparse.Namespace) -> int:
     """Execute `lubrig stability`."""
     config = source_from_args(args).base()
+    if args.zeta and len(args.zeta) > MAX_ZETAS:
+        raise ValueError(f"--zeta has {len(args.zeta)} values; at most {MAX_ZETAS}")
     zetas = [parse_zeta(text) for text in args.zeta] if args.zeta else [config.rig.damping_ratio]
     rig = rig_parameters(config.rig, args.convention, args.contact_area, args.velocity_coupling)
     report = stability_report(rig, zetas)
     if args.at is not None:
-        v = parse_finite("--at", args.at, "a band velocity > 0 in m/s")
-        if v <= 0.0:
-            raise ValueError(f"--at {args.at!r} must be > 0; expected a band velocity in m/s")
+        limit = BAND_VELOCITY_LIMIT
+        v = parse_finite("--at", args.at, f"a band velocity > 0 and <= {limit:g} m/s")
+        if not 0.0 < v <= limit:
+            raise ValueError(
+                f"--at {args.at!r} is not valid; expected a band velocity > 0 and <= {limit:g} m/s"
+            )
         report["critical_damping_ratio"] = {
             "velocity": v,
             "zeta_crit": float(critical_damping_ratio(v, rig)),
@@ -128,7 +139,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         nargs="+",
         default=None,
         metavar="Z",
-        help="damping ratios >= 0 (default: the selected run's, 0.01 for the default rig)",
+        help=f"damping ratios >= 0, at most {MAX_ZETAS} (default: the selected run's, 0.01 for the "
+        "default rig)",
     )
     parser.add_argument(
         "--convention",

@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from typing import Any, ClassVar, Literal
 
 from .friction_laws import DEFAULT_LAW, law_parameters
+from .schema import RIG_FIELDS, friction_field
 from .validation import ParameterError, _check_finite, _check_positive, _check_range
 
 __all__ = [
@@ -147,41 +148,30 @@ def convention_coupling(convention: str, natural_frequency: float) -> float:
     raise ParameterError(f"convention={convention!r} is not valid; expected one of {list(CONVENTIONS)}")
 
 
-#: Physical ranges of a RUN's rig (kg, Hz, 1, N): where the model describes a bench-top rig; a value
-#: outside is a typo, not an experiment (issue 11's fuzz found natural_frequency 1000 accepted).
-#: One home: RunConfig checks them (every run: CLI, YAML, nodes) and the plant's parameter
-#: descriptors carry them (app/contract.py). RigParameters itself does not: the linear stability
-#: analysis explores damping ratios far beyond a rig's (ζ_crit reaches 1e5 with γ = 1).
-#: ζ = 0 (undamped) is allowed; ζ ≤ 2 covers over-damped rigs.
-RIG_RANGES: dict[str, tuple[float, float]] = {
-    "mass": (1e-4, 1e3),
-    "natural_frequency": (1e-2, 500.0),
-    "damping_ratio": (0.0, 2.0),
-    "normal_force": (1e-9, 10.0),
-}
-#: Output samples per natural period at the least (sample_rate >= this × f0): the integrator
-#: steps adaptively, but the analysis and the figures see only the output samples.
-MIN_SAMPLES_PER_PERIOD = 20
-
-
-RIG_RANGE_UNITS = {"mass": "kg", "natural_frequency": "Hz", "damping_ratio": "", "normal_force": "N"}
-
-
 def check_rig_ranges(rig: RigParameters) -> None:
-    """ParameterError naming the first of the rig's values outside RIG_RANGES and the range."""
-    values = {
-        "mass": rig.mass,
-        "natural_frequency": rig.natural_frequency,
-        "damping_ratio": rig.damping_ratio,
-        "normal_force": getattr(rig.friction, "normal_force", None),
-    }
-    for name, value in values.items():
-        low, high = RIG_RANGES[name]
-        if isinstance(value, (int, float)) and not low <= value <= high:
-            unit = f" {RIG_RANGE_UNITS[name]}" if RIG_RANGE_UNITS[name] else ""
-            raise ParameterError(
-                f"{name}={value!r} is outside the physical range [{low:g}, {high:g}]{unit}"
-            )
+    """ParameterError naming the first of a run's rig values outside its physical range.
+
+    The ranges are core/schema.py's (RIG_FIELDS, and FRICTION_FIELDS of the rig's friction law),
+    with the cross-check d <= D of the junction-kinetics law. RigParameters itself does not check
+    them: the linear stability analysis explores damping ratios far beyond a rig's (ζ_crit reaches
+    1e5 with γ = 1).
+    """
+    for name in ("mass", "natural_frequency", "damping_ratio"):
+        RIG_FIELDS[name].check(getattr(rig, name))
+    if rig.velocity_coupling is not None:
+        RIG_FIELDS["velocity_coupling"].check(rig.velocity_coupling)
+    law = type(rig.friction).law
+    for f in fields(rig.friction):
+        spec = friction_field(law, f.name)
+        if spec is not None:
+            spec.check(getattr(rig.friction, f.name))
+    inner = getattr(rig.friction, "interpenetration_thickness", None)
+    outer = getattr(rig.friction, "interface_thickness", None)
+    if inner is not None and outer is not None and inner > outer:
+        raise ParameterError(
+            f"interpenetration_thickness={inner!r} m is larger than interface_thickness={outer!r} m; "
+            "the interpenetration zone lies inside the interface (d <= D)"
+        )
 
 
 @dataclass(frozen=True)
@@ -306,9 +296,7 @@ class RigParameters:
         known_rig = {f.name for f in fields(cls)} - {"friction"}
         unknown = set(data) - known_rig
         if unknown:
-            raise ParameterError(
-                f"unknown rig parameter(s) {sorted(unknown)}; valid: {sorted(known_rig)}"
-            )
+            raise ParameterError(f"unknown rig parameter(s) {sorted(unknown)}; valid: {sorted(known_rig)}")
         return cls(**data, friction=friction_from_dict(friction_data))
 
 
@@ -332,7 +320,5 @@ def friction_from_dict(data: dict[str, Any]) -> Any:
     known = [f.name for f in fields(kind)]
     unknown = set(data) - set(known)
     if unknown:
-        raise ParameterError(
-            f"unknown {law} friction parameter(s) {sorted(unknown)}; valid: {sorted(known)}"
-        )
+        raise ParameterError(f"unknown {law} friction parameter(s) {sorted(unknown)}; valid: {sorted(known)}")
     return kind(**data)

@@ -21,7 +21,13 @@ from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
-from .validation import ParameterError, _check_finite, _check_positive
+from .schema import BAND_FIELDS, BAND_VELOCITY_LIMIT, band_field
+from .validation import ParameterError
+
+
+def _checked(kind: str, name: str, value: Any) -> float:
+    """A profile field's value inside its physical range (core/schema.py BAND_FIELDS)."""
+    return BAND_FIELDS[kind][name].check(value)
 
 
 class BandProfile(Protocol):
@@ -97,7 +103,7 @@ class ConstantBand:
     kind: ClassVar[str] = "constant"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "velocity", _check_finite("velocity", self.velocity))
+        object.__setattr__(self, "velocity", _checked(self.kind, "velocity", self.velocity))
 
     @property
     def fundamental_hz(self) -> float | None:
@@ -130,21 +136,15 @@ class RegularCycle:
     kind: ClassVar[str] = "cycle"
 
     def __post_init__(self) -> None:
-        low = _check_finite("low_velocity", self.low_velocity)
-        high = _check_finite("high_velocity", self.high_velocity)
+        low = _checked(self.kind, "low_velocity", self.low_velocity)
+        high = _checked(self.kind, "high_velocity", self.high_velocity)
         if high <= low:
             raise ParameterError(
                 f"high_velocity={self.high_velocity!r} must be greater than "
                 f"low_velocity={self.low_velocity!r} (V2 > V1)"
             )
-        plateau = _check_finite("plateau_time", self.plateau_time)
-        if plateau < 0.0:
-            raise ParameterError(f"plateau_time={self.plateau_time!r} must be >= 0 s")
-        ramp = _check_finite("ramp_time", self.ramp_time)
-        if ramp < 0.0 or ramp + plateau <= 0.0:
-            raise ParameterError(
-                f"ramp_time={self.ramp_time!r} must be >= 0 s with ramp_time + plateau_time > 0"
-            )
+        plateau = _checked(self.kind, "plateau_time", self.plateau_time)
+        ramp = _checked(self.kind, "ramp_time", self.ramp_time)
         for name, value in (
             ("low_velocity", low),
             ("high_velocity", high),
@@ -198,13 +198,15 @@ class SinusoidalBand:
     kind: ClassVar[str] = "sine"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "mean_velocity", _check_finite("mean_velocity", self.mean_velocity))
-        amplitude = _check_finite("amplitude", self.amplitude)
-        if amplitude < 0.0:
-            raise ParameterError(f"amplitude={self.amplitude!r} must be >= 0 m/s")
-        object.__setattr__(self, "amplitude", amplitude)
-        object.__setattr__(self, "frequency", _check_positive("frequency", self.frequency))
-        object.__setattr__(self, "phase", _check_finite("phase", self.phase))
+        for name in ("mean_velocity", "amplitude", "frequency", "phase"):
+            object.__setattr__(self, name, _checked(self.kind, name, getattr(self, name)))
+        reach = abs(self.mean_velocity) + self.amplitude
+        if reach > BAND_VELOCITY_LIMIT:
+            raise ParameterError(
+                f"mean_velocity={self.mean_velocity!r} with amplitude={self.amplitude!r} reaches "
+                f"|v_band| = {reach:g} m/s; keep |mean_velocity| + amplitude <= "
+                f"{BAND_VELOCITY_LIMIT:g} m/s"
+            )
 
     @property
     def fundamental_hz(self) -> float:
@@ -214,9 +216,7 @@ class SinusoidalBand:
     def __call__(self, time: np.typing.ArrayLike) -> np.ndarray:
         """v_band(t) in m/s for t in s."""
         t = np.asarray(time, dtype=float)
-        return self.mean_velocity + self.amplitude * np.sin(
-            2.0 * math.pi * self.frequency * t + self.phase
-        )
+        return self.mean_velocity + self.amplitude * np.sin(2.0 * math.pi * self.frequency * t + self.phase)
 
     def verdict_velocities(self) -> tuple[float, ...]:
         """The mean velocity if > 0."""
@@ -251,6 +251,14 @@ class TableBand:
             raise ParameterError(
                 f"{where}: row {row + 1} has a non-finite value "
                 f"(time={times[row]!r}, velocity={velocities[row]!r}); expected finite numbers"
+            )
+        limit = BAND_FIELDS[self.kind]["velocities"]
+        outside = ~(np.abs(velocities) <= limit.high)
+        if outside.any():
+            row = int(np.argmax(outside))
+            raise ParameterError(
+                f"{where}: row {row + 1} has velocity={float(velocities[row])!r}, outside the physical "
+                f"range {limit.range_text()}"
             )
         steps = np.diff(times)
         if (steps <= 0).any():
@@ -448,6 +456,9 @@ class ProfileParameters:
                 raise ParameterError(
                     f"profile.{name} is not a band profile parameter; valid: {sorted(self.owners)}"
                 )
+            spec = band_field(name)
+            if spec is not None:  # a field of an inactive kind is checked too: it is kept
+                spec.check(value, f"profile.{name}")
             targets = (kind,) if kind in self.owners[name] else self.owners[name]
             for owner in targets:
                 staged[owner][name] = value

@@ -30,7 +30,7 @@ from rclpy.parameter import Parameter
 from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
 
 from ..app.belt_session import AheadSchedule, BandBlock, ProfileState, SimSchedule
-from ..app.contract import BELT_DRIVE_PARAMETERS, flow_window_problem
+from ..app.contract import BELT_DRIVE_PARAMETERS, flow_window_problem, profile_parameter
 from ..app.flow import FlowGate, qualified_name
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
@@ -131,6 +131,10 @@ class BeltDrive(Node):
             if current != value:
                 given[name] = current
         self.band.start(given)
+        for name in declared:  # the contract's descriptors: unit and physical range
+            spec = profile_parameter(name)
+            if spec is not None:
+                self.set_descriptor(spec.name, common.describe(spec, self.describe_parameter(spec.name)))
 
     def _complete_profile_update(self, params: list[Parameter]) -> list[Parameter]:
         """A change of profile.kind also sets the new kind's own fields (no value of another kind)."""

@@ -15,6 +15,7 @@ still reads such bags; its other topics can be replayed with --topics).
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 import time
@@ -28,6 +29,10 @@ from lubrig_ros.bag.reader import check_bag, read_messages
 from lubrig_ros.nodes.script import run_script
 
 LEGACY_STATE = "sensor_msgs/msg/JointState"
+#: Fastest --rate (time scale): beyond it a 1 kHz bag is 1 MHz of messages, no replay.
+MAX_RATE = 1000.0
+#: Longest --wait-for-subscribers, s.
+MAX_WAIT_S = 3600.0
 
 
 def build_parser(prog: str = "replay") -> argparse.ArgumentParser:
@@ -40,10 +45,14 @@ def build_parser(prog: str = "replay") -> argparse.ArgumentParser:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Add the replay arguments to p."""
     p.add_argument("bag", type=Path, help="bag directory")
-    p.add_argument("--rate", type=float, default=1.0, help="time scale (2 = twice as fast)")
+    p.add_argument(
+        "--rate", type=float, default=1.0, help=f"time scale (2 = twice as fast), in (0, {MAX_RATE:g}]"
+    )
     p.add_argument("--loop", action="store_true", help="start over at the end until stopped")
     p.add_argument("--topics", nargs="+", metavar="TOPIC", help="replay only these topics")
-    p.add_argument("--start", type=float, default=0.0, help="skip the first S seconds of the bag")
+    p.add_argument(
+        "--start", type=float, default=0.0, help="skip the first S seconds of the bag (less than its span)"
+    )
     p.add_argument("--clock", action="store_true", help="publish /clock from the log times")
     p.add_argument("--namespace", default=DEFAULT_NAMESPACE, help="for relative --topics names")
     p.add_argument(
@@ -54,11 +63,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Check the bag, then publish it; returns the exit status."""
-    if not args.rate > 0:
-        raise ValueError(f"--rate {args.rate} is invalid: expected a number > 0")
-    if args.start < 0:
+    if not (math.isfinite(args.rate) and 0 < args.rate <= MAX_RATE):
+        raise ValueError(f"--rate {args.rate} is invalid: expected a time scale in (0, {MAX_RATE:g}]")
+    if not (math.isfinite(args.start) and args.start >= 0):
         raise ValueError(f"--start {args.start} is invalid: expected seconds >= 0")
+    if not (math.isfinite(args.wait_for_subscribers) and 0 <= args.wait_for_subscribers <= MAX_WAIT_S):
+        raise ValueError(
+            f"--wait-for-subscribers {args.wait_for_subscribers} is invalid: expected seconds in "
+            f"[0, {MAX_WAIT_S:g}]"
+        )
     summary = check_bag(args.bag)
+    if args.start > 0 and args.start >= summary.duration_s:
+        raise ValueError(
+            f"--start {args.start:g} is invalid: the bag spans {summary.duration_s:g} s; expected "
+            f"seconds in [0, {summary.duration_s:g})"
+        )
     types = {t.name: t.msgtype for t in summary.topics if t.count}
     if args.topics:
         wanted = [resolve(args.namespace, n) for n in args.topics]

@@ -1,0 +1,195 @@
+"""Physical ranges of every configuration field: name, unit, range, meaning (no numpy).
+
+The one home of what a run may hold. A value outside its range is a typo, not an experiment: the
+model describes a bench-top rig sliding at up to 1 cm/s through a nanometre-thin interface.
+Who applies them:
+
+* ``RunConfig`` (core/presets.py) checks every field of a run and the cross-checks between
+  fields (every run: CLI, YAML, sweeps, the nodes' parameters applied at a reset);
+* the band profile kinds (core/profiles.py) check their own fields;
+* the nodes' parameter descriptors carry them (app/node_parameters.py derives the plant's and
+  belt_drive's parameters from these tables, so ``ros2 param describe`` shows the same range);
+* ``lubrig --help`` shows them (cli/common.py), config/rig.yaml states them in its comments
+  (test/test_schema.py checks both against this module).
+
+The parameter dataclasses themselves (RigParameters, FrictionParameters) only demand finite,
+positive values: the linear stability analysis and the tests explore far beyond a rig's ranges.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from .validation import ParameterError, _check_finite
+
+__all__ = [
+    "BAND_FIELDS",
+    "BAND_VELOCITY_LIMIT",
+    "FRICTION_FIELDS",
+    "MAX_SAMPLES",
+    "MIN_SAMPLES_PER_PERIOD",
+    "RIG_FIELDS",
+    "SIMULATION_FIELDS",
+    "FieldSpec",
+    "band_field",
+    "friction_field",
+]
+
+
+def number_text(x: float) -> str:
+    """A bound as written in messages, docs and YAML comments: 0.01, 1e-13, 1e+06 -> 1e6."""
+    if float(x).is_integer() and abs(x) < 1e6:
+        return str(int(x))
+    text = f"{x:g}"
+    if "e" in text:
+        mantissa, exponent = text.split("e")
+        text = f"{mantissa}e{int(exponent)}"
+    return text
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    """One field: its name, SI unit ('1' for a pure number), range, symbol and meaning.
+
+    The range is closed, or open at `low` if `low_open`.
+    """
+
+    name: str
+    unit: str
+    low: float
+    high: float
+    description: str
+    symbol: str = ""
+    low_open: bool = False
+
+    @property
+    def unit_text(self) -> str:
+        """' kg' for a unit, '' for a pure number (for appending to a number)."""
+        return "" if self.unit in ("1", "") else f" {self.unit}"
+
+    def range_text(self) -> str:
+        """'[0.0001, 1000] kg', '(0, 1e6] s': the range with its unit."""
+        opening = "(" if self.low_open else "["
+        return f"{opening}{number_text(self.low)}, {number_text(self.high)}]{self.unit_text}"
+
+    def contains(self, value: float) -> bool:
+        """True if the finite number `value` is inside the range."""
+        above = value > self.low if self.low_open else value >= self.low
+        return above and value <= self.high
+
+    def check(self, value: Any, name: str | None = None) -> float:
+        """`value` as a float if it is a finite number inside the range.
+
+        Otherwise ParameterError naming the value and the physical range.
+        """
+        label = name or self.name
+        number = _check_finite(label, value)
+        if isinstance(value, bool) or not self.contains(number):
+            raise ParameterError(f"{label}={value!r} is outside the physical range {self.range_text()}")
+        return number
+
+
+def _table(*specs: FieldSpec) -> dict[str, FieldSpec]:
+    return {s.name: s for s in specs}
+
+
+#: Largest |band velocity| a run may have and the plant accepts by default, m/s.
+BAND_VELOCITY_LIMIT = 1e-2
+#: Output samples per natural period at the least (sample_rate >= this × f0): the integrator
+#: steps adaptively, but the analysis and the figures see only the output samples.
+MIN_SAMPLES_PER_PERIOD = 20
+#: Output samples a run may have at most (duration × sample_rate): 11.6 days at 1 kHz; what
+#: `lubrig simulate` can hold in this machine's memory is checked there on top.
+MAX_SAMPLES = 1_000_000_000
+
+_NORMAL_FORCE = FieldSpec("normal_force", "N", 1e-9, 10.0, "normal force pressing the mass on the band", "N")
+
+RIG_FIELDS: dict[str, FieldSpec] = _table(
+    FieldSpec("mass", "kg", 1e-4, 1e3, "mass of the slider", "m"),
+    FieldSpec("natural_frequency", "Hz", 1e-2, 500.0, "natural frequency, k = m (2π f0)²", "f0"),
+    FieldSpec("damping_ratio", "1", 0.0, 2.0, "damping ratio, c = 2 ζ sqrt(k m) (0: undamped)", "ζ"),
+    FieldSpec(
+        "velocity_coupling",
+        "1",
+        1e-6,
+        1e3,
+        "explicit γ in v_rel = v_band − γ ẋ (s/s; physical 1, paper 1/ω0, hertz 1/f0)",
+        "γ",
+    ),
+    _NORMAL_FORCE,
+)
+
+#: Per friction law (core.friction_laws registry name): the ranges of its parameter fields.
+FRICTION_FIELDS: dict[str, dict[str, FieldSpec]] = {
+    "junction_kinetics": _table(
+        FieldSpec("shear_modulus", "Pa", 1e3, 1e11, "shear modulus of the confined interface", "G"),
+        FieldSpec("interface_thickness", "m", 1e-10, 1e-6, "interface thickness", "D"),
+        FieldSpec(
+            "interpenetration_thickness",
+            "m",
+            1e-12,
+            1e-6,
+            "interpenetration zone thickness (at most D)",
+            "d",
+        ),
+        FieldSpec("yield_distance", "m", 1e-12, 1e-6, "yield distance of a junction", "l*"),
+        FieldSpec("thermal_break_time", "s", 1e-6, 1e6, "thermal break time at zero force", "τ0"),
+        FieldSpec("reference_activation_time", "s", 1e-6, 1e6, "reference activation time", "τ_ref"),
+        FieldSpec("reference_velocity", "m/s", 1e-15, 1.0, "reference velocity", "v_ref"),
+        FieldSpec("activation_exponent", "1", -1.0, 0.0, "activation-time power index", "k1"),
+        FieldSpec("reference_viscosity", "Pa·s", 1e-4, 1e6, "reference viscosity", "η_ref"),
+        FieldSpec("shear_thinning_exponent", "1", -1.0, 0.0, "shear-thinning power index", "k2"),
+        FieldSpec("contact_area", "m²", 1e-14, 1e-4, "contact area (corrected 2.83e-10 m²)", "A"),
+        _NORMAL_FORCE,
+    ),
+    "stribeck": _table(
+        FieldSpec("static_coefficient", "1", 0.0, 10.0, "static friction coefficient", "μ_s"),
+        FieldSpec("kinetic_coefficient", "1", 0.0, 10.0, "kinetic (Coulomb) friction coefficient", "μ_c"),
+        FieldSpec("stribeck_velocity", "m/s", 1e-15, 1.0, "Stribeck velocity", "v_s"),
+        FieldSpec("stribeck_exponent", "1", 0.0, 10.0, "Stribeck exponent", "δ", low_open=True),
+        FieldSpec("viscous_coefficient", "s/m", 0.0, 1e12, "viscous coefficient", "μ_v"),
+        FieldSpec("regularization_velocity", "m/s", 1e-18, 1e-3, "regularization velocity near v = 0", "v_r"),
+        _NORMAL_FORCE,
+    ),
+}
+
+SIMULATION_FIELDS: dict[str, FieldSpec] = _table(
+    FieldSpec("duration", "s", 0.0, 1e6, "run length in rig time", low_open=True),
+    FieldSpec("sample_rate", "Hz", 1.0, 1e5, "output samples per second of rig time"),
+    FieldSpec("rtol", "1", 1e-13, 1e-2, "relative tolerance of the Radau IIA integrator"),
+    FieldSpec("initial_perturbation", "1", -1.0, 1.0, "x(0) = (1 + this) x0, ẋ(0) = 0"),
+)
+
+_V = BAND_VELOCITY_LIMIT
+#: Per band profile kind (core.profiles registry name): the ranges of its numeric fields.
+BAND_FIELDS: dict[str, dict[str, FieldSpec]] = {
+    "constant": _table(FieldSpec("velocity", "m/s", -_V, _V, "band velocity")),
+    "cycle": _table(
+        FieldSpec("low_velocity", "m/s", -_V, _V, "V1, the lower plateau", "V1"),
+        FieldSpec("high_velocity", "m/s", -_V, _V, "V2, the upper plateau (> V1)", "V2"),
+        FieldSpec("plateau_time", "s", 0.0, 1e6, "both plateaus together", "T_c"),
+        FieldSpec("ramp_time", "s", 0.0, 1e6, "both ramps together", "T_ramp", low_open=True),
+    ),
+    "sine": _table(
+        FieldSpec("mean_velocity", "m/s", -_V, _V, "mean band velocity"),
+        FieldSpec("amplitude", "m/s", 0.0, _V, "amplitude (|mean| + amplitude within the limit)"),
+        FieldSpec("frequency", "Hz", 0.0, 5e4, "frequency (at most half the sample rate)", low_open=True),
+        FieldSpec("phase", "rad", -2.0 * math.pi, 2.0 * math.pi, "phase at t = 0"),
+    ),
+    "table": _table(FieldSpec("velocities", "m/s", -_V, _V, "band velocities of the table rows")),
+}
+
+
+def friction_field(law: str, name: str) -> FieldSpec | None:
+    """The range of friction law `law`'s field `name`, None for a law or field without one."""
+    return FRICTION_FIELDS.get(law, {}).get(name)
+
+
+def band_field(name: str) -> FieldSpec | None:
+    """The range of a band profile field by its name (profile field names are unique across kinds)."""
+    for table in BAND_FIELDS.values():
+        if name in table:
+            return table[name]
+    return None
