@@ -72,8 +72,10 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -q -m "not ros and not slow" $(PYTEST_ARGS) test
 
+# ruff check (including complexity, C901 at 15) and ruff format --check: both gate CI (.ci/run).
 lint: setup
 	$(VENV)/bin/ruff check lubrig_ros test bench launch
+	$(VENV)/bin/ruff format --check lubrig_ros test bench launch
 
 # mypy on the whole package (settings in pyproject.toml [tool.mypy]); must report no issues.
 typecheck: setup

@@ -28,8 +28,10 @@ from lubrig_ros.bag.writer import serialize_string, typestore
 
 def _messages(layout: str, seconds: float, rate: float, block: int) -> list[tuple[str, str, int, bytes]]:
     ts = typestore()
-    js, hdr, stamp = (ts.types[n] for n in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header",
-                                            "builtin_interfaces/msg/Time"))
+    js, hdr, stamp = (
+        ts.types[n]
+        for n in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header", "builtin_interfaces/msg/Time")
+    )
     clock = ts.types["rosgraph_msgs/msg/Clock"]
     out: list[tuple[str, str, int, bytes]] = []
     n = int(seconds * rate)
@@ -37,17 +39,35 @@ def _messages(layout: str, seconds: float, rate: float, block: int) -> list[tupl
     for k in range(0, n, step):
         t = round(k * 1e9 / rate)
         sec, nsec = divmod(t, 10**9)
-        out.append(("/clock", "rosgraph_msgs/msg/Clock", t,
-                    bytes(ts.serialize_cdr(clock(stamp(sec, nsec)), "rosgraph_msgs/msg/Clock"))))
+        out.append(
+            (
+                "/clock",
+                "rosgraph_msgs/msg/Clock",
+                t,
+                bytes(ts.serialize_cdr(clock(stamp(sec, nsec)), "rosgraph_msgs/msg/Clock")),
+            )
+        )
         x = [1e-6 * math.sin(0.01 * (k + i)) for i in range(step)]
         if layout == "per-sample":
             for topic in ("displacement", "velocity", "friction_coefficient", "band_velocity"):
-                out.append((f"/lubrig/{topic}", "std_msgs/msg/Float64", t,
-                            b"\x00\x01\x00\x00" + struct.pack("<d", x[0])))
+                out.append(
+                    (
+                        f"/lubrig/{topic}",
+                        "std_msgs/msg/Float64",
+                        t,
+                        b"\x00\x01\x00\x00" + struct.pack("<d", x[0]),
+                    )
+                )
             one = np.array(x[:1])
             state = js(hdr(stamp(sec, nsec), ""), ["mass"], one, one, one)
-            out.append(("/lubrig/state", "sensor_msgs/msg/JointState", t,
-                        bytes(ts.serialize_cdr(state, "sensor_msgs/msg/JointState"))))
+            out.append(
+                (
+                    "/lubrig/state",
+                    "sensor_msgs/msg/JointState",
+                    t,
+                    bytes(ts.serialize_cdr(state, "sensor_msgs/msg/JointState")),
+                )
+            )
         else:
             head = b"\x00\x01\x00\x00" + struct.pack("<iI", sec, nsec) + b"\x01\x00\x00\x00\x00\x00\x00\x00"
             body = b"".join(struct.pack("<I", step) + struct.pack(f"<{step}d", *x) for _ in range(7))
@@ -88,11 +108,15 @@ def main() -> None:
             for bounded, (wall, chunks, size) in rows.items():
                 name = "bound 0.2 s / 1000 msgs" if bounded else "1 MiB chunks only"
                 per_msg, per_s = wall * 1e6 / len(messages), wall / args.seconds * 1e3
-                print(f"{layout:10s} {name:24s} {len(messages):7d} msgs  {per_msg:6.2f} us/msg  "
-                      f"{per_s:6.2f} ms per rig s  {chunks:5d} chunks  {size / 1e6:7.3f} MB")
+                print(
+                    f"{layout:10s} {name:24s} {len(messages):7d} msgs  {per_msg:6.2f} us/msg  "
+                    f"{per_s:6.2f} ms per rig s  {chunks:5d} chunks  {size / 1e6:7.3f} MB"
+                )
             extra = (rows[True][0] - rows[False][0]) / args.seconds
-            print(f"{layout:10s} flush bound costs {extra * 1e3:+.2f} ms of wall time per rig second, "
-                  f"file {rows[True][2] / rows[False][2]:.2f} x")
+            print(
+                f"{layout:10s} flush bound costs {extra * 1e3:+.2f} ms of wall time per rig second, "
+                f"file {rows[True][2] / rows[False][2]:.2f} x"
+            )
 
 
 if __name__ == "__main__":

@@ -62,12 +62,20 @@ def main() -> int:
                 hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
             t0 = time.perf_counter()
             pub = procs.run_module(
-                "lubrig_testkit.synthetic", "publish", "--rate", str(args.rate), "--samples",
-                str(samples), *(["--scalars"] if args.scalars else []), "--wait-subscribers", "120",
+                "lubrig_testkit.synthetic",
+                "publish",
+                "--rate",
+                str(args.rate),
+                "--samples",
+                str(samples),
+                *(["--scalars"] if args.scalars else []),
+                "--wait-subscribers",
+                "120",
                 # after matching, let discovery finish on the recorder's side too, as a recorded
                 # realtime `lubrig rig` does (belt_drive's start_delay 1.5 s): at 0.5 s a quiet-
                 # machine run lost its first 571 samples while the analysis node was starting
-                "--settle", "2",
+                "--settle",
+                "2",
                 timeout=args.seconds * 4 + 180,
             )
             wall = time.perf_counter() - t0
@@ -85,18 +93,22 @@ def main() -> int:
     accounting = json.loads((bag / "accounting.json").read_text())
     counts = {t.name: t.count for t in check_bag(bag).topics}
     print(f"recorder: {rec.output().splitlines()[0]}  (exit {status})")
-    print(f"published {samples} samples at {args.rate:g} Hz in {info['elapsed']:.2f} s "
-          f"(publisher wall incl. discovery {wall:.1f} s); analysis {'on' if args.analysis else 'off'}, "
-          f"hog {'on' if args.hog else 'off'}")
+    print(
+        f"published {samples} samples at {args.rate:g} Hz in {info['elapsed']:.2f} s "
+        f"(publisher wall incl. discovery {wall:.1f} s); analysis {'on' if args.analysis else 'off'}, "
+        f"hog {'on' if args.hog else 'off'}"
+    )
     for topic, n in info["published"].items():
         got = counts.get(topic, 0)
         print(f"  {topic:<30} published {n:>7}  in bag {got:>7}  lost {n - got:>5}")
     state = accounting["streams"].get("/lubrig/state", {"samples": 0, "missing": 0, "gaps": []})
     published = info["published"]["/lubrig/state"]
     tail = published - (state["segments"]["0"]["last_index"] + 1 if state.get("segments") else 0)
-    print(f"state: {state['samples']} of {published} samples recorded = "
-          f"{100 * state['samples'] / published:.3f} %; recorder accounting: {state['missing']} missing "
-          f"in {len(state['gaps'])} gaps, {max(tail, 0)} after the last recorded sample")
+    print(
+        f"state: {state['samples']} of {published} samples recorded = "
+        f"{100 * state['samples'] / published:.3f} %; recorder accounting: {state['missing']} missing "
+        f"in {len(state['gaps'])} gaps, {max(tail, 0)} after the last recorded sample"
+    )
     for line in accounting["problems"]:
         print(f"  recorder: {line}")
     shutil.rmtree(tmp)

@@ -42,11 +42,22 @@ def _bag(path: Path, times_ns: list[int]) -> Path:
 
 def pacing(procs: Processes, bag: Path, n: int, step_s: float, rate: float, out: Path) -> tuple[float, float]:
     """(max timing error s, span s) of one replay of bag at rate."""
-    listener = procs.module("lubrig_testkit.synthetic", "listen", "--topics", TOPIC, "--count", str(n),
-                            "--timeout", "120", "--output", str(out))
+    listener = procs.module(
+        "lubrig_testkit.synthetic",
+        "listen",
+        "--topics",
+        TOPIC,
+        "--count",
+        str(n),
+        "--timeout",
+        "120",
+        "--output",
+        str(out),
+    )
     listener.wait_for_output("listening")
-    replay = procs.module("lubrig_ros.nodes.replay", str(bag), "--rate", str(rate),
-                          "--wait-for-subscribers", "60")
+    replay = procs.module(
+        "lubrig_ros.nodes.replay", str(bag), "--rate", str(rate), "--wait-for-subscribers", "60"
+    )
     if replay.wait(timeout=300) != 0 or listener.wait(timeout=300) != 0:
         raise RuntimeError(replay.log() + listener.log())
     recv = [t for _name, t, _v in json.loads(out.read_text())]
@@ -59,8 +70,9 @@ def pacing(procs: Processes, bag: Path, n: int, step_s: float, rate: float, out:
 
 def stop_latency(procs: Processes, bag: Path) -> float:
     """Seconds from SIGINT to exit while replay waits in a 10^4 s gap."""
-    replay = procs.module("lubrig_ros.nodes.replay", str(bag), "--rate", "0.01",
-                          "--wait-for-subscribers", "0")
+    replay = procs.module(
+        "lubrig_ros.nodes.replay", str(bag), "--rate", "0.01", "--wait-for-subscribers", "0"
+    )
     wait_until(lambda: "replay:" in replay.output(), 60, "replay started", alive=(replay,))
     time.sleep(1.0)  # inside the gap (the first message goes out at once)
     sent = time.monotonic()
@@ -80,13 +92,17 @@ def main() -> None:
         try:
             bag = _bag(tmp_path / "bag", [5_000_000_000 + k * step_ns for k in range(args.messages)])
             ideal = (args.messages - 1) * step_ns / 1e9
-            print(f"replay of {args.messages} messages {args.step_ms:g} ms apart "
-                  f"({ideal:.3f} s of log time):")
+            print(
+                f"replay of {args.messages} messages {args.step_ms:g} ms apart ({ideal:.3f} s of log time):"
+            )
             for rate in (1.0, 2.0):
-                error, span = pacing(procs, bag, args.messages, step_ns / 1e9, rate,
-                                     tmp_path / f"got{rate:g}.json")
-                print(f"  --rate {rate:g}: span {span:.3f} s (ideal {ideal / rate:.3f} s), "
-                      f"max timing error {error * 1e3:.1f} ms")
+                error, span = pacing(
+                    procs, bag, args.messages, step_ns / 1e9, rate, tmp_path / f"got{rate:g}.json"
+                )
+                print(
+                    f"  --rate {rate:g}: span {span:.3f} s (ideal {ideal / rate:.3f} s), "
+                    f"max timing error {error * 1e3:.1f} ms"
+                )
             gap = _bag(tmp_path / "gap", [1_000_000_000, 101_000_000_000])
             print(f"  SIGINT inside a 10^4 s wait (--rate 0.01): exit after {stop_latency(procs, gap):.2f} s")
         finally:

@@ -78,8 +78,10 @@ def main() -> int:
         windows: dict[int, int] = {}
         for t in got:
             windows[int(t / 0.01)] = windows.get(int(t / 0.01), 0) + 1
-        print(f"band {value:>9g} m/s for {t1 - t0:.2f} s: {len(got)} states, longest pause "
-              f"{max(pauses, default=0.0) * 1e3:.1f} ms, most in 10 ms {max(windows.values(), default=0)}")
+        print(
+            f"band {value:>9g} m/s for {t1 - t0:.2f} s: {len(got)} states, longest pause "
+            f"{max(pauses, default=0.0) * 1e3:.1f} ms, most in 10 ms {max(windows.values(), default=0)}"
+        )
     return 0
 
 

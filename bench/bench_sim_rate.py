@@ -52,8 +52,17 @@ def run_phase(out: Path) -> float:
 
 def rig_wall(case: int, duration: float, out: Path, record: bool) -> tuple[float, float, float]:
     """Wall seconds of one `lubrig rig` command (report skipped), and its start and end (epoch s)."""
-    argv = [str(BIN / "lubrig"), "rig", "--case", str(case), "--duration", f"{duration:g}",
-            "--bag", str(out), "--no-report"]
+    argv = [
+        str(BIN / "lubrig"),
+        "rig",
+        "--case",
+        str(case),
+        "--duration",
+        f"{duration:g}",
+        "--bag",
+        str(out),
+        "--no-report",
+    ]
     if not record:
         argv.append("--no-recorder")
     start, epoch = time.perf_counter(), time.time()
@@ -62,8 +71,9 @@ def rig_wall(case: int, duration: float, out: Path, record: bool) -> tuple[float
     if done.returncode != 0:
         kept = Path(tempfile.mkdtemp(prefix="bench_sim_rate_failed_"))
         shutil.copytree(out, kept / out.name)  # the node logs outlive the temporary directory
-        raise RuntimeError(f"{argv} failed ({done.returncode}), run folder kept in {kept}:\n"
-                           f"{done.stdout}\n{done.stderr}")
+        raise RuntimeError(
+            f"{argv} failed ({done.returncode}), run folder kept in {kept}:\n{done.stdout}\n{done.stderr}"
+        )
     return wall, epoch, epoch + wall
 
 
@@ -117,8 +127,12 @@ def bench_rig(args: argparse.Namespace, tmp: Path) -> None:
                 f"{args.long / phases[args.long]:.1f}; outside the run phase: "
                 f"{walls[args.long] - phases[args.long]:.2f} s"
             )
-            print("  start-up (command -> first band block) / shutdown (run complete -> exit): " + ", ".join(
-                f"{d:g} s run {ends[d][0]:.2f} s / {ends[d][1]:.2f} s" for d in (args.short, args.long)))
+            print(
+                "  start-up (command -> first band block) / shutdown (run complete -> exit): "
+                + ", ".join(
+                    f"{d:g} s run {ends[d][0]:.2f} s / {ends[d][1]:.2f} s" for d in (args.short, args.long)
+                )
+            )
     rate = core_rate(args.case, args.long)
     print(f"core.run.simulate, case {args.case}, {args.long:g} s: {rate:.1f} rig s per wall s")
 
@@ -137,8 +151,14 @@ def block_run(length: int, duration: float, tmp: Path) -> float:
             probe.subscribe(f"{ns}/run_complete", Bool, common.LATCHED_QOS)
             me = probe.consume_blocks(ns)
             procs.node("plant", case=1, duration=duration, wait_for_subscriber="probe")
-            procs.node("belt_drive", case=1, duration=duration, block_length=length,
-                       flow_window=min(1000, 98 * length), required_consumers=f"['{me}']")
+            procs.node(
+                "belt_drive",
+                case=1,
+                duration=duration,
+                block_length=length,
+                flow_window=min(1000, 98 * length),
+                required_consumers=f"['{me}']",
+            )
             n = round(duration * 1000) + 1
             blocks = f"{ns}/state_block"
             if not probe.wait_for(
@@ -158,8 +178,10 @@ def bench_blocks(args: argparse.Namespace, tmp: Path) -> None:
         w0 = block_run(length, args.short, tmp)
         w1 = block_run(length, args.long, tmp)
         rate = (args.long - args.short) / (w1 - w0)
-        print(f"block_length {length:5d}: {args.short:g} s run {w0:.2f} s, {args.long:g} s run {w1:.2f} s "
-              f"-> marginal {rate:.1f} rig s per wall s (plant + belt_drive + a required consumer)")
+        print(
+            f"block_length {length:5d}: {args.short:g} s run {w0:.2f} s, {args.long:g} s run {w1:.2f} s "
+            f"-> marginal {rate:.1f} rig s per wall s (plant + belt_drive + a required consumer)"
+        )
 
 
 def main() -> None:

@@ -121,8 +121,9 @@ def test_sample_span_of_rclpy_and_rosbags_cdr(frame_id: str) -> None:
     msg = _rig_state(2**40 + 3, 7, frame_id)
     span = sample_span("lubrig_interfaces/msg/RigState", serialize_message(msg))
     assert span == SampleSpan(2_000_000_500, 7, 2**40 + 3, 1, None)
-    block = RigStateBlock(sample_period=1e-3, first_sample_index=101, segment=2,
-                          displacement=[0.0] * 37, velocity=[0.0] * 37)
+    block = RigStateBlock(
+        sample_period=1e-3, first_sample_index=101, segment=2, displacement=[0.0] * 37, velocity=[0.0] * 37
+    )
     block.header.frame_id = frame_id
     span = sample_span("lubrig_interfaces/msg/RigStateBlock", serialize_message(block))
     assert (span.segment, span.first_index, span.count, span.period_ns) == (2, 101, 37, 1e6)
@@ -152,8 +153,14 @@ def test_typestore_registers_every_interface_with_rosidls_type_hash() -> None:
 
     share = Path(sys.prefix) / "share" / "lubrig_interfaces" / "msg"
     names = sorted(p.stem for p in share.glob("*.msg"))
-    assert {"RigState", "RigStateBlock", "BandVelocityBlock", "FlowProgress", "WaveletFrame",
-            "StabilityFlags"} <= set(names)
+    assert {
+        "RigState",
+        "RigStateBlock",
+        "BandVelocityBlock",
+        "FlowProgress",
+        "WaveletFrame",
+        "StabilityFlags",
+    } <= set(names)
     ts = typestore()
     assert "lubrig_interfaces/msg/RigState" not in get_typestore(Stores.ROS2_KILTED).fielddefs
     for name in names:

@@ -39,8 +39,11 @@ def test_a_run_in_blocks_gives_the_frame_axes_and_every_flag():
     for start in range(0, len(ref), 100):
         end = min(start + 100, len(ref))
         session.samples_input(
-            ref.displacement[start:end], ref.velocity[start:end], ref.band_velocity[start:end],
-            ref.relative_velocity[start:end], float(ref.time[end - 1]),
+            ref.displacement[start:end],
+            ref.velocity[start:end],
+            ref.band_velocity[start:end],
+            ref.relative_velocity[start:end],
+            float(ref.time[end - 1]),
         )
         outs.append(session.tick())
     framed = [o for o in outs if o.power is not None]

@@ -179,9 +179,7 @@ def test_no_import_breaks_the_tiers() -> None:
     assert not unexpected, "\n".join(f"{a} imports {b}" for a, b in sorted(unexpected))
 
 
-@pytest.mark.xfail(
-    bool(EXPECTED_ELSEWHERE), reason="tier violations in files other helpers own", strict=True
-)
+@pytest.mark.xfail(bool(EXPECTED_ELSEWHERE), reason="tier violations in files other helpers own", strict=True)
 def test_no_expected_violation_left() -> None:
     assert not (tier_violations() & EXPECTED_ELSEWHERE)
 

@@ -48,8 +48,9 @@ CHILD = textwrap.dedent(
 
 def test_failed_writer_close_leaves_repair_to_the_caller(tmp_path: Path) -> None:
     bag = tmp_path / "bag"
-    res = subprocess.run([sys.executable, "-c", CHILD, str(bag)], capture_output=True, text=True,
-                         timeout=120, check=False)
+    res = subprocess.run(
+        [sys.executable, "-c", CHILD, str(bag)], capture_output=True, text=True, timeout=120, check=False
+    )
     assert res.returncode == 0, res.stderr
     status = json.loads(res.stdout.strip().splitlines()[-1])
     assert status["failed"] and "File too large" in status["error"], status

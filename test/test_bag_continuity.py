@@ -29,8 +29,12 @@ def _float_bag(path: Path, skip: set[int], repeat: set[int]) -> None:
         if k in skip:
             continue
         for _ in range(2 if k in repeat else 1):
-            w.write("/lubrig/displacement", "std_msgs/msg/Float64", 1_000_000_000 + k * 1_000_000,
-                    b"\x00\x01\x00\x00" + struct.pack("<d", float(k)))
+            w.write(
+                "/lubrig/displacement",
+                "std_msgs/msg/Float64",
+                1_000_000_000 + k * 1_000_000,
+                b"\x00\x01\x00\x00" + struct.pack("<d", float(k)),
+            )
     w.close()
 
 
@@ -48,8 +52,13 @@ def _msg_bag(path: Path, msgtype: str, messages: list[tuple[int, object]]) -> No
         cid = w.register_channel(topic, "cdr", sid, {"offered_qos_profiles": ""})
         for t, msg in messages:
             w.add_message(cid, t, serialize_message(msg), t)
-        meta = metadata_dict(f"{path.name}.mcap", [(topic, msgtype, "", len(messages))],
-                             messages[0][0], messages[-1][0], {"lubrig_ros.run_config": CONFIG})
+        meta = metadata_dict(
+            f"{path.name}.mcap",
+            [(topic, msgtype, "", len(messages))],
+            messages[0][0],
+            messages[-1][0],
+            {"lubrig_ros.run_config": CONFIG},
+        )
         yaml_text, record = metadata_texts(meta)
         w.add_metadata("rosbag2", {"serialized_metadata": record})
         w.finish()
@@ -81,8 +90,9 @@ def test_float64_gap_and_duplicate_named_by_info_and_check(tmp_path: Path) -> No
     _float_bag(bag, skip={500, 501, 502}, repeat={800})
     info = lubrig("bag", "info", str(bag))
     assert info.returncode == 0, info.stderr  # info shows gaps, it does not fail on them
-    line = next(x for x in info.stdout.splitlines() if x.strip().startswith("/lubrig/displacement")
-                and "gaps" in x)
+    line = next(
+        x for x in info.stdout.splitlines() if x.strip().startswith("/lubrig/displacement") and "gaps" in x
+    )
     assert "gaps 1 (3 samples missing, first at 1.503000 s), duplicates 1 (first at 1.800000 s)" in line
     check = lubrig("bag", "check", str(bag))
     assert check.returncode == 1
@@ -97,9 +107,14 @@ def test_clean_float64_stream(tmp_path: Path) -> None:
 
 
 def test_rig_state_block_gaps_duplicates_segments(tmp_path: Path) -> None:
-    spec = [(0, 0, 100), (0, 100, 100), (0, 300, 100),  # block 200..299 missing
-            (0, 300, 100),  # the same block again
-            (1, 0, 100), (1, 100, 50)]  # a reset: segment 1 from sample 0
+    spec = [
+        (0, 0, 100),
+        (0, 100, 100),
+        (0, 300, 100),  # block 200..299 missing
+        (0, 300, 100),  # the same block again
+        (1, 0, 100),
+        (1, 100, 50),
+    ]  # a reset: segment 1 from sample 0
     _msg_bag(tmp_path / "bag", "lubrig_interfaces/msg/RigStateBlock", _blocks(spec))
     v = verify_bag(tmp_path / "bag")
     assert not v.structural, [p.line() for p in v.problems]

@@ -101,8 +101,11 @@ class Layout:
 
     def kept_before(self, cut: int) -> int:
         """Messages of the chunks that end before byte cut."""
-        return sum(n for c, n in zip(self.chunks, self.per_chunk, strict=True)
-                   if c.chunk_start_offset + c.chunk_length <= cut)
+        return sum(
+            n
+            for c, n in zip(self.chunks, self.per_chunk, strict=True)
+            if c.chunk_start_offset + c.chunk_length <= cut
+        )
 
 
 def _flip(offset: int, mask: int = 0x01) -> Callable[[Path, bytes], None]:
@@ -110,12 +113,14 @@ def _flip(offset: int, mask: int = 0x01) -> Callable[[Path, bytes], None]:
         buf = bytearray(data)
         buf[offset] ^= mask
         (bag / "bag.mcap").write_bytes(bytes(buf))
+
     return damage
 
 
 def _cut(offset: int) -> Callable[[Path, bytes], None]:
     def damage(bag: Path, data: bytes) -> None:
         (bag / "bag.mcap").write_bytes(data[:offset])
+
     return damage
 
 
@@ -193,18 +198,33 @@ def matrix(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
             "replay": ["replay", str(bag)],
             "repair": ["bag", "repair", str(bag)],
         }
-    res = subprocess.run([sys.executable, "-c", DRIVER, json.dumps(commands)], capture_output=True,
-                         text=True, timeout=TIMEOUT * 4, check=False)
+    res = subprocess.run(
+        [sys.executable, "-c", DRIVER, json.dumps(commands)],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT * 4,
+        check=False,
+    )
     assert res.returncode == 0, res.stderr
     results = json.loads(res.stdout.strip().splitlines()[-1])
-    return {"root": root, "original": original, "layout": lay, "cases": table, "results": results,
-            "sha": sha}
+    return {"root": root, "original": original, "layout": lay, "cases": table, "results": results, "sha": sha}
 
 
 CASE_NAMES = [
-    "truncated_in_header", "truncated_at_one_third", "truncated_at_two_thirds", "truncated_before_summary",
-    "truncated_last_byte", "flip_header_profile", "flip_chunk_data", "flip_chunk_crc", "flip_message_index",
-    "flip_summary", "flip_footer", "metadata_deleted", "metadata_count_wrong", "empty_directory",
+    "truncated_in_header",
+    "truncated_at_one_third",
+    "truncated_at_two_thirds",
+    "truncated_before_summary",
+    "truncated_last_byte",
+    "flip_header_profile",
+    "flip_chunk_data",
+    "flip_chunk_crc",
+    "flip_message_index",
+    "flip_summary",
+    "flip_footer",
+    "metadata_deleted",
+    "metadata_count_wrong",
+    "empty_directory",
 ]
 
 
@@ -262,11 +282,19 @@ def test_repair_keeps_every_message_of_the_chunks_that_verify(matrix: dict, name
 def test_intact_bag_passes_and_repair_leaves_it(matrix: dict, tmp_path: Path) -> None:
     bag = tmp_path / "bag"
     shutil.copytree(matrix["original"], bag)
-    commands = (["bag", "check", str(bag)], ["bag", "info", "--verify", str(bag)],
-                ["bag", "repair", str(bag)])
+    commands = (
+        ["bag", "check", str(bag)],
+        ["bag", "info", "--verify", str(bag)],
+        ["bag", "repair", str(bag)],
+    )
     for args in commands:
-        res = subprocess.run([sys.executable, "-m", "lubrig_ros.cli.main", *args], capture_output=True,
-                             text=True, timeout=TIMEOUT, check=False)
+        res = subprocess.run(
+            [sys.executable, "-m", "lubrig_ros.cli.main", *args],
+            capture_output=True,
+            text=True,
+            timeout=TIMEOUT,
+            check=False,
+        )
         assert res.returncode == 0, res.stderr
         assert "Traceback" not in res.stderr
     assert "nothing to repair" in res.stdout
@@ -277,8 +305,13 @@ def test_intact_bag_passes_and_repair_leaves_it(matrix: dict, tmp_path: Path) ->
 def test_console_script_one_line(matrix: dict, name: str) -> None:
     """The console script itself (a fresh interpreter) on damaged bags: one line, exit status."""
     bag = matrix["root"] / name / "bag"
-    res = subprocess.run([sys.executable, "-m", "lubrig_ros.cli.main", "bag", "check", str(bag)],
-                         capture_output=True, text=True, timeout=TIMEOUT, check=False)
+    res = subprocess.run(
+        [sys.executable, "-m", "lubrig_ros.cli.main", "bag", "check", str(bag)],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT,
+        check=False,
+    )
     assert res.returncode == 1 and len(res.stderr.strip().splitlines()) == 1, res.stderr
     assert matrix["cases"][name][1] in res.stderr
 
@@ -286,9 +319,21 @@ def test_console_script_one_line(matrix: dict, name: str) -> None:
 def test_report_after_repair(matrix: dict, tmp_path: Path) -> None:
     """A bag whose metadata.yaml was lost is reported on again once repaired."""
     repaired = matrix["root"] / "metadata_deleted" / "bag_repaired"
-    res = subprocess.run([sys.executable, "-m", "lubrig_ros.cli.main", "report", str(repaired), "--out",
-                          str(tmp_path / "report")], capture_output=True, text=True, timeout=TIMEOUT * 2,
-                         check=False)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "lubrig_ros.cli.main",
+            "report",
+            str(repaired),
+            "--out",
+            str(tmp_path / "report"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT * 2,
+        check=False,
+    )
     assert res.returncode == 0, res.stderr
     assert (tmp_path / "report" / "summary.json").is_file()
 
@@ -298,13 +343,18 @@ def test_every_byte_flip_inside_a_chunk_is_detected(tmp_path: Path) -> None:
     bag = tmp_path / "bag"
     w = BagWriter(bag, flush_messages=50)
     for k in range(120):
-        w.write("/lubrig/displacement", "std_msgs/msg/Float64", 1_000_000 * k,
-                b"\x00\x01\x00\x00" + struct.pack("<d", 0.001 * k))
+        w.write(
+            "/lubrig/displacement",
+            "std_msgs/msg/Float64",
+            1_000_000 * k,
+            b"\x00\x01\x00\x00" + struct.pack("<d", 0.001 * k),
+        )
     w.close()
     mcap = bag / "bag.mcap"
     data = mcap.read_bytes()
-    lay_chunks = sorted(make_reader(io.BytesIO(data)).get_summary().chunk_indexes,
-                        key=lambda c: c.chunk_start_offset)
+    lay_chunks = sorted(
+        make_reader(io.BytesIO(data)).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset
+    )
     chunk = lay_chunks[1]
     start = chunk.chunk_start_offset + 9  # the chunk record's body: times, sizes, CRC, data
     end = chunk.chunk_start_offset + chunk.chunk_length

@@ -38,8 +38,11 @@ def _write(path: Path, finalize: bool = True) -> BagWriter:
 
 def _cli_process(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "lubrig_ros.cli.main", *args], capture_output=True, text=True,
-        timeout=60, check=False,
+        [sys.executable, "-m", "lubrig_ros.cli.main", *args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
     )
 
 
@@ -71,8 +74,11 @@ def test_truncated_bag_refused_by_info_and_replay(bag: Path) -> None:
     _one_error_line(_cli("bag", "info", str(bag)), "damaged", "repair")
     _one_error_line(_cli("replay", str(bag)), "damaged")
     res = subprocess.run(
-        [sys.executable, "-m", "lubrig_ros.nodes.replay", str(bag)], capture_output=True,
-        text=True, timeout=60, check=False,
+        [sys.executable, "-m", "lubrig_ros.nodes.replay", str(bag)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
     )
     _one_error_line(res, "damaged")
 

@@ -38,8 +38,15 @@ from lubrig_ros.report import trajectory_from_bag
 from lubrig_ros.report.frombag import recording_summary
 
 NS = "/lubrig"
-FIELDS = ("displacement", "velocity", "friction_coefficient", "friction_force", "band_velocity",
-          "relative_velocity", "belt_travel")
+FIELDS = (
+    "displacement",
+    "velocity",
+    "friction_coefficient",
+    "friction_force",
+    "band_velocity",
+    "relative_velocity",
+    "belt_travel",
+)
 
 
 def _stamp(msg, ns: int) -> None:
@@ -50,16 +57,23 @@ def _values(traj, config, k0: int, k1: int) -> dict[str, np.ndarray]:
     normal = config.rig.friction.normal_force
     sl = slice(k0, k1)
     return {
-        "displacement": traj.displacement[sl], "velocity": traj.velocity[sl],
+        "displacement": traj.displacement[sl],
+        "velocity": traj.velocity[sl],
         "friction_coefficient": traj.friction_coefficient[sl],
         "friction_force": traj.friction_coefficient[sl] * normal,
-        "band_velocity": traj.band_velocity[sl], "relative_velocity": traj.relative_velocity[sl],
+        "band_velocity": traj.band_velocity[sl],
+        "relative_velocity": traj.relative_velocity[sl],
         "belt_travel": np.cumsum(traj.band_velocity)[sl] / config.sample_rate,
     }
 
 
-def _write_run(path: Path, duration: float = 1.0, block: int = 100, per_sample: bool = False,
-               drop_blocks: tuple[int, ...] = ()):
+def _write_run(
+    path: Path,
+    duration: float = 1.0,
+    block: int = 100,
+    per_sample: bool = False,
+    drop_blocks: tuple[int, ...] = (),
+):
     """A core run written in the current layout: state_block (sim) or RigState per sample."""
     config = load_case(1).with_overrides(duration=duration)
     traj = simulate(config)
@@ -84,8 +98,9 @@ def _write_run(path: Path, duration: float = 1.0, block: int = 100, per_sample: 
             _stamp(m, ns_of(k0))
             for name, col in _values(traj, config, k0, k1).items():
                 setattr(m, name, col.tolist())
-            w.write(f"{NS}/state_block", "lubrig_interfaces/msg/RigStateBlock", ns_of(k0),
-                    serialize_message(m))
+            w.write(
+                f"{NS}/state_block", "lubrig_interfaces/msg/RigStateBlock", ns_of(k0), serialize_message(m)
+            )
     w.close()
     return config, traj
 
@@ -122,8 +137,13 @@ def test_gap_is_named_and_marked_in_the_report(tmp_path: Path) -> None:
     _, rebuilt = trajectory_from_bag(bag)  # the samples that are there, without the gap
     assert len(rebuilt) == 901
     out = tmp_path / "report"
-    res = subprocess.run([sys.executable, "-m", "lubrig_ros.cli.main", "report", str(bag), "--out",
-                          str(out)], capture_output=True, text=True, timeout=600, check=False)
+    res = subprocess.run(
+        [sys.executable, "-m", "lubrig_ros.cli.main", "report", str(bag), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
     assert res.returncode == 0, res.stderr
     page = (out / "report.md").read_text()
     assert "**INCOMPLETE**" in page
@@ -134,26 +154,60 @@ def test_gap_is_named_and_marked_in_the_report(tmp_path: Path) -> None:
 
 def _every_custom_type() -> list[tuple[str, str, object]]:
     """(topic, type, message) with non-trivial values for each lubrig_interfaces message."""
-    state = RigState(sample_index=7, segment=2, displacement=1e-9, velocity=-2e-8,
-                     friction_coefficient=6.5e-3, friction_force=0.013, band_velocity=1e-4,
-                     relative_velocity=1.2e-4, belt_travel=3e-3)
-    block = RigStateBlock(sample_period=1e-3, first_sample_index=11, segment=1,
-                          displacement=[1.0, 2.0], velocity=[3.0, 4.0], friction_coefficient=[5.0, 6.0],
-                          friction_force=[7.0, 8.0], band_velocity=[9.0, 10.0],
-                          relative_velocity=[11.0, 12.0], belt_travel=[13.0, 14.0])
+    state = RigState(
+        sample_index=7,
+        segment=2,
+        displacement=1e-9,
+        velocity=-2e-8,
+        friction_coefficient=6.5e-3,
+        friction_force=0.013,
+        band_velocity=1e-4,
+        relative_velocity=1.2e-4,
+        belt_travel=3e-3,
+    )
+    block = RigStateBlock(
+        sample_period=1e-3,
+        first_sample_index=11,
+        segment=1,
+        displacement=[1.0, 2.0],
+        velocity=[3.0, 4.0],
+        friction_coefficient=[5.0, 6.0],
+        friction_force=[7.0, 8.0],
+        band_velocity=[9.0, 10.0],
+        relative_velocity=[11.0, 12.0],
+        belt_travel=[13.0, 14.0],
+    )
     band = BandVelocityBlock(sample_period=1e-3, first_sample_index=3, segment=1, band_velocity=[0.5, 0.25])
     progress = FlowProgress(participant="/lubrig/lubrig_recorder", segment=1, samples=1234)
-    frame = WaveletFrame(frequency=[100.0, 50.0, 25.0], rows=3, cols=2,
-                         power=[1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+    frame = WaveletFrame(frequency=[100.0, 50.0, 25.0], rows=3, cols=2, power=[1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
     frame.start.sec, frame.end.sec, frame.end.nanosec = 1, 1, 1_000_000
-    flags = StabilityFlags(linear_zone=StabilityFlags.ZONE_FALLING, band_velocity=1e-4,
-                           damping_ratio=0.01, critical_damping_ratio=0.05, effective_damping=-0.08,
-                           linear_stable=False, oscillation=StabilityFlags.OSCILLATION_GROWING,
-                           oscillation_growing=True, growth_rate=1.5, growth_fit_r2=0.9, sticking=True,
-                           stick_threshold=1e-5, stick_share=0.25, stick_episodes=4, longest_stick=0.02,
-                           resonance=True, resonance_harmonic=2)
-    msgs = [("state", state), ("state_block", block), ("band_velocity_block", band),
-            ("flow_progress", progress), ("wavelet_frame", frame), ("stability", flags)]
+    flags = StabilityFlags(
+        linear_zone=StabilityFlags.ZONE_FALLING,
+        band_velocity=1e-4,
+        damping_ratio=0.01,
+        critical_damping_ratio=0.05,
+        effective_damping=-0.08,
+        linear_stable=False,
+        oscillation=StabilityFlags.OSCILLATION_GROWING,
+        oscillation_growing=True,
+        growth_rate=1.5,
+        growth_fit_r2=0.9,
+        sticking=True,
+        stick_threshold=1e-5,
+        stick_share=0.25,
+        stick_episodes=4,
+        longest_stick=0.02,
+        resonance=True,
+        resonance_harmonic=2,
+    )
+    msgs = [
+        ("state", state),
+        ("state_block", block),
+        ("band_velocity_block", band),
+        ("flow_progress", progress),
+        ("wavelet_frame", frame),
+        ("stability", flags),
+    ]
     out = []
     for i, (topic, msg) in enumerate(msgs):
         _stamp(msg, 2_000_000_000 + i)
@@ -166,8 +220,11 @@ def _plain(value: object) -> object:
     if hasattr(value, "get_fields_and_field_types"):  # rclpy message
         return {n: _plain(getattr(value, n)) for n in value.get_fields_and_field_types()}
     if dataclasses.is_dataclass(value):  # rosbags message; ROS constants are UPPER_CASE
-        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)
-                if f.name != "__msgtype__" and f.name.lower() == f.name}
+        return {
+            f.name: _plain(getattr(value, f.name))
+            for f in dataclasses.fields(value)
+            if f.name != "__msgtype__" and f.name.lower() == f.name
+        }
     if hasattr(value, "__slots__") and not isinstance(value, (list, tuple, np.ndarray)):  # mcap_ros2
         return {n: _plain(getattr(value, n)) for n in value.__slots__ if n.lower() == n}
     if isinstance(value, (list, tuple, np.ndarray)) or type(value).__name__ == "array":

@@ -23,8 +23,15 @@ def test_band_range_problem_names_value_time_and_limit():
     reason = band_range_problem(fast, 1000.0, 2.0, 1e-3)
     assert reason is not None and "|v_band| = 0.005 m/s" in reason and "band_velocity_limit 0.001" in reason
     # a cycle whose low plateau is -5 mm/s: found where it happens, not only at t = 0
-    cycle = profile_from_dict({"kind": "cycle", "low_velocity": -0.005, "high_velocity": 1e-6,
-                               "plateau_time": 1.0, "ramp_time": 0.5})
+    cycle = profile_from_dict(
+        {
+            "kind": "cycle",
+            "low_velocity": -0.005,
+            "high_velocity": 1e-6,
+            "plateau_time": 1.0,
+            "ramp_time": 0.5,
+        }
+    )
     reason = band_range_problem(cycle, 1000.0, 10.0, 1e-3)
     assert reason is not None and "|v_band| = 0.005 m/s" in reason
     assert band_range_problem(cycle, 1000.0, 10.0, 1e-2) is None
@@ -35,9 +42,21 @@ def test_band_range_problem_names_value_time_and_limit():
 
 def test_belt_drive_refuses_a_profile_outside_the_plants_band_range(procs, probe, ros_env):
     res = subprocess.run(
-        [str(BIN / "belt_drive"), "--ros-args", "-p", "case:=1", "-p", "band_velocity_limit:=0.001",
-         "-p", "profile.high_velocity:=0.005"],
-        capture_output=True, text=True, timeout=60, env=ros_env, check=False,
+        [
+            str(BIN / "belt_drive"),
+            "--ros-args",
+            "-p",
+            "case:=1",
+            "-p",
+            "band_velocity_limit:=0.001",
+            "-p",
+            "profile.high_velocity:=0.005",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=ros_env,
+        check=False,
     )
     assert res.returncode == 2
     out = res.stdout + res.stderr

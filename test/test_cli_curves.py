@@ -27,9 +27,7 @@ COMMAND = [str(SCRIPT)] if SCRIPT.exists() else [sys.executable, "-m", "lubrig_r
 
 
 def lubrig_process(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [*COMMAND, *args], capture_output=True, text=True, timeout=120, check=False
-    )
+    return subprocess.run([*COMMAND, *args], capture_output=True, text=True, timeout=120, check=False)
 
 
 def lubrig_json(*args: str) -> dict:

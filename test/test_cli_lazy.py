@@ -42,7 +42,9 @@ def test_friction_help_imports_neither_the_rig_nor_the_kernels():
 
 def test_full_help_still_lists_every_subcommand():
     out = subprocess.run(
-        [sys.executable, "-m", "lubrig_ros.cli.main", "--help"], capture_output=True, text=True,
+        [sys.executable, "-m", "lubrig_ros.cli.main", "--help"],
+        capture_output=True,
+        text=True,
         timeout=120,
     ).stdout
     for name in SUBCOMMAND_MODULES:

@@ -14,7 +14,17 @@ from lubrig_ros.core.params import ParameterError
 
 VALID = ["/lubrig", "/", "/rig_2", "/a/b2", "/_", "/A/_x", "/" + "a" * 244]
 INVALID = [
-    "", "lubrig", "/rig-2", "/lubrig/", "/a//b", "/2rig", "/a/2b", "/a b", "/~a", "/ä", "/a.b",
+    "",
+    "lubrig",
+    "/rig-2",
+    "/lubrig/",
+    "/a//b",
+    "/2rig",
+    "/a/2b",
+    "/a b",
+    "/~a",
+    "/ä",
+    "/a.b",
     "/" + "a" * 245,
 ]
 

@@ -17,8 +17,12 @@ import pytest
 pytestmark = pytest.mark.ros
 
 ENCLAVE_FILES = (
-    "identity_ca.cert.pem", "cert.pem", "key.pem", "permissions_ca.cert.pem",
-    "governance.p7s", "permissions.p7s",
+    "identity_ca.cert.pem",
+    "cert.pem",
+    "key.pem",
+    "permissions_ca.cert.pem",
+    "governance.p7s",
+    "permissions.p7s",
 )
 NODE = textwrap.dedent(
     """

@@ -120,9 +120,7 @@ def _trajectory_points(fig: object) -> np.ndarray:
 
 
 @pytest.mark.parametrize("which", ["case1", "case7", "stickslip"])
-def test_mu_velocity_trajectory_lies_on_the_friction_law(
-    which: str, request: pytest.FixtureRequest
-) -> None:
+def test_mu_velocity_trajectory_lies_on_the_friction_law(which: str, request: pytest.FixtureRequest) -> None:
     config, traj = request.getfixturevalue(which)
     fig = mu_velocity_figure(traj, config.name, config.rig.convention, config.rig)
     ax = fig.axes[0]

@@ -99,8 +99,12 @@ def test_band_at_rest_has_no_linear_verdict_but_other_flags_work():
 
     t = np.arange(2000) * 1e-3
     flags = evaluate_flags(
-        RigParameters(), band_velocity=0.0, displacement=1e-9 * np.sin(2 * np.pi * 10 * t), dt=1e-3,
-        relative_velocity=np.zeros(2000), fundamental_hz=4.76,
+        RigParameters(),
+        band_velocity=0.0,
+        displacement=1e-9 * np.sin(2 * np.pi * 10 * t),
+        dt=1e-3,
+        relative_velocity=np.zeros(2000),
+        fundamental_hz=4.76,
     )
     assert flags.band_velocity_m_s == 0.0
     assert flags.zone is None and flags.linear_stable is None and flags.critical_damping_ratio is None

@@ -61,9 +61,7 @@ def test_minimum_matches_study_landmark() -> None:
     assert minimum.velocity == pytest.approx(1.35e-7, rel=0.01)
 
 
-@pytest.mark.parametrize(
-    ("velocity", "expected"), [(1e-7, 6.553e-3), (2e-7, 6.593e-3), (1e-6, 9.20e-3)]
-)
+@pytest.mark.parametrize(("velocity", "expected"), [(1e-7, 6.553e-3), (2e-7, 6.593e-3), (1e-6, 9.20e-3)])
 def test_band_velocity_values_match_study(velocity: float, expected: float) -> None:
     assert float(friction_coefficient(velocity)) == pytest.approx(expected, rel=0.01)
 

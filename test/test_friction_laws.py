@@ -158,11 +158,13 @@ def test_yaml_names_the_law_and_round_trips(tmp_path: Path) -> None:
 
 def test_simulate_with_the_stribeck_law_matches_its_equilibrium_and_stability(tmp_path: Path) -> None:
     """Zone 3 band (stable): the run settles on x0 = N μ(v)/k; zone 2 band, undamped: it sticks."""
-    stable = from_mapping({
-        "rig": {"friction": {"law": "stribeck"}, "damping_ratio": 0.05},
-        "band": {"kind": "constant", "velocity": 1e-6},
-        "simulation": {"duration": 2.0},
-    })
+    stable = from_mapping(
+        {
+            "rig": {"friction": {"law": "stribeck"}, "damping_ratio": 0.05},
+            "band": {"kind": "constant", "velocity": 1e-6},
+            "simulation": {"duration": 2.0},
+        }
+    )
     verdict = linear_stability(1e-6, stable.rig)
     assert verdict.zone == 3 and verdict.stable
     trajectory = simulate(stable)
@@ -192,10 +194,12 @@ def test_simulate_with_the_stribeck_law_matches_its_equilibrium_and_stability(tm
 
 def test_summary_stability_and_flags_for_a_law_without_a_peak() -> None:
     rig = RigParameters(friction=NO_PEAK, damping_ratio=0.01)
-    config = from_mapping({
-        "rig": {"friction": {"law": "stribeck", "static_coefficient": 0.006}, "damping_ratio": 0.01},
-        "simulation": {"duration": 0.5},
-    })
+    config = from_mapping(
+        {
+            "rig": {"friction": {"law": "stribeck", "static_coefficient": 0.006}, "damping_ratio": 0.01},
+            "simulation": {"duration": 0.5},
+        }
+    )
     assert config.rig == rig
     summary = summarize(simulate(config), config)
     assert summary["stick_threshold_m_s"] is None and summary["stick_fraction"] is None

@@ -89,7 +89,9 @@ def test_paper_html_every_case_figure_and_progress_on_a_pty(tmp_path: Path) -> N
     master, slave = pty.openpty()
     proc = subprocess.Popen(
         [sys.executable, "-m", "lubrig_ros.cli.main", "paper", "--out", str(out), "--duration", "6"],
-        stdin=slave, stdout=slave, stderr=slave,
+        stdin=slave,
+        stdout=slave,
+        stderr=slave,
     )
     os.close(slave)
     output = b""

@@ -36,8 +36,12 @@ def reference(
     scale = 1e-2 * normal / k
     options = {"method": "Radau", "jac": jac, "rtol": 1e-10} if stiff else {"method": "DOP853", "rtol": 1e-12}
     sol = solve_ivp(
-        rhs, (0, duration), [x0, 0.0], t_eval=t_samples,
-        atol=[1e-12 * scale, 1e-12 * scale * rig.angular_frequency], **options,
+        rhs,
+        (0, duration),
+        [x0, 0.0],
+        t_eval=t_samples,
+        atol=[1e-12 * scale, 1e-12 * scale * rig.angular_frequency],
+        **options,
     )
     assert sol.success
     return sol.y[0], sol.y[1]

@@ -29,7 +29,12 @@ except ImportError as exc:  # loud, not skipped: `make test` builds it first (ma
 
 PACKAGE = "lubrig_interfaces"
 MESSAGES = (
-    "RigState", "RigStateBlock", "BandVelocityBlock", "WaveletFrame", "StabilityFlags", "FlowProgress",
+    "RigState",
+    "RigStateBlock",
+    "BandVelocityBlock",
+    "WaveletFrame",
+    "StabilityFlags",
+    "FlowProgress",
 )
 SHARE = Path(sys.prefix) / "share" / PACKAGE / "msg"
 N = 100  # samples in the test blocks
@@ -147,8 +152,15 @@ def test_cdr_round_trip_is_equal(name):
 def test_block_arrays_keep_float64_precision_and_length():
     block = deserialize_message(serialize_message(rig_state_block()), msg.RigStateBlock)
     expected = rig_state_block()
-    for field in ("displacement", "velocity", "friction_coefficient", "friction_force",
-                  "band_velocity", "relative_velocity", "belt_travel"):
+    for field in (
+        "displacement",
+        "velocity",
+        "friction_coefficient",
+        "friction_force",
+        "band_velocity",
+        "relative_velocity",
+        "belt_travel",
+    ):
         assert len(getattr(block, field)) == N
         assert list(getattr(block, field)) == list(getattr(expected, field))  # bit for bit
 
@@ -279,13 +291,20 @@ def test_rig_state_block_between_two_processes_over_dds(tmp_path):
     sent.write_bytes(serialize_message(original))
     env, timeout = _ros_env(), 90.0
     publisher = subprocess.Popen(
-        [sys.executable, "-c", PUBLISHER, str(sent), str(timeout)], env=env,
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+        [sys.executable, "-c", PUBLISHER, str(sent), str(timeout)],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
     )
     try:
         result = subprocess.run(
-            [sys.executable, "-c", SUBSCRIBER, str(received), str(timeout)], env=env,
-            capture_output=True, text=True, timeout=timeout + 30,
+            [sys.executable, "-c", SUBSCRIBER, str(received), str(timeout)],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=timeout + 30,
         )
     finally:
         publisher.kill()
@@ -311,8 +330,9 @@ def test_mcap_from_rosbags_decodes_with_mcap_ros2_support_from_the_schema_alone(
     with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conn = writer.add_connection("/lubrig/state_block", f"{PACKAGE}/msg/RigStateBlock", typestore=store)
         writer.write(conn, 2_500_000_000, serialize_message(original))
-        conn = writer.add_connection("/lubrig/stability_flags", f"{PACKAGE}/msg/StabilityFlags",
-                                     typestore=store)
+        conn = writer.add_connection(
+            "/lubrig/stability_flags", f"{PACKAGE}/msg/StabilityFlags", typestore=store
+        )
         writer.write(conn, 4_000_000_000, serialize_message(flags))
     (path,) = bag.glob("*.mcap")
     with path.open("rb") as f:  # an independent reader: only what the file holds
@@ -327,8 +347,15 @@ def test_mcap_from_rosbags_decodes_with_mcap_ros2_support_from_the_schema_alone(
     assert (block.header.stamp.sec, block.header.stamp.nanosec) == (2, 500_000_000)
     assert block.sample_period == original.sample_period
     assert block.first_sample_index == original.first_sample_index
-    for field in ("displacement", "velocity", "friction_coefficient", "friction_force",
-                  "band_velocity", "relative_velocity", "belt_travel"):
+    for field in (
+        "displacement",
+        "velocity",
+        "friction_coefficient",
+        "friction_force",
+        "band_velocity",
+        "relative_velocity",
+        "belt_travel",
+    ):
         assert list(getattr(block, field)) == list(getattr(original, field)), field
     name, _, _, got = decoded["/lubrig/stability_flags"]
     assert name == f"{PACKAGE}/msg/StabilityFlags"

@@ -38,7 +38,10 @@ def test_sigint_during_start_up_leaves_no_traceback(ros_env: dict[str, str], del
     delay += 2 * (time.monotonic() - start)
     node = subprocess.Popen(
         [str(BIN / "analysis"), "--ros-args", "-r", "__ns:=/lubrig", "-p", "case:=1"],
-        env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        env=ros_env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
     )
     time.sleep(delay)
     node.send_signal(signal.SIGINT)
@@ -52,7 +55,10 @@ def test_sigint_to_a_running_node_is_a_clean_stop(ros_env: dict[str, str], name:
     """Once the node runs, SIGINT is the clean stop of rclpy's handling: exit status 0."""
     node = subprocess.Popen(
         [str(BIN / name), "--ros-args", "-r", "__ns:=/lubrig", "-p", "case:=1"],
-        env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        env=ros_env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
     )
     lines: list[str] = []
     assert node.stdout is not None

@@ -35,9 +35,13 @@ def _check_descriptor(node: str, d, spec: contract.NodeParameter) -> None:
         assert r.to_value == (2**63 - 1 if spec.high is None else spec.high), (node, d.name)
     else:
         assert not d.floating_point_range and not d.integer_range, (node, d.name)
-    expected_type = {"double": ParameterType.PARAMETER_DOUBLE, "integer": ParameterType.PARAMETER_INTEGER,
-                     "string": ParameterType.PARAMETER_STRING, "bool": ParameterType.PARAMETER_BOOL,
-                     "string_array": ParameterType.PARAMETER_STRING_ARRAY}
+    expected_type = {
+        "double": ParameterType.PARAMETER_DOUBLE,
+        "integer": ParameterType.PARAMETER_INTEGER,
+        "string": ParameterType.PARAMETER_STRING,
+        "bool": ParameterType.PARAMETER_BOOL,
+        "string_array": ParameterType.PARAMETER_STRING_ARRAY,
+    }
     assert d.type == expected_type[spec.type], (node, d.name, d.type)
 
 
@@ -49,8 +53,10 @@ def test_descriptors_hold_the_contract_ranges_and_runtime_updates_are_checked(pr
         # profile.*: declared from the core profile registry with its own text (belt_drive)
         names = sorted(p.name for p in specs if not p.name.startswith("profile."))
         described = probe.call(
-            DescribeParameters, f"{NS}/{node}/describe_parameters",
-            DescribeParameters.Request(names=names), 120,
+            DescribeParameters,
+            f"{NS}/{node}/describe_parameters",
+            DescribeParameters.Request(names=names),
+            120,
         )
         assert [d.name for d in described.descriptors] == names
         for d in described.descriptors:

@@ -24,8 +24,9 @@ def test_sim_plant_ends_when_its_run_is_complete(procs, probe):
     duration = 1.0
     probe.subscribe(f"{NS}/run_complete", Bool, common.LATCHED_QOS)
     me = probe.consume_blocks(NS)
-    plant = procs.node("plant", case=1, duration=duration, exit_when_complete=True,
-                       wait_for_subscriber="probe")
+    plant = procs.node(
+        "plant", case=1, duration=duration, exit_when_complete=True, wait_for_subscriber="probe"
+    )
     belt = procs.node("belt_drive", case=1, duration=duration, required_consumers=f"['{me}']")
     assert plant.wait(timeout=120) == 0, procs.logs()
     assert "run complete: the node ends (exit_when_complete)" in plant.errors() + plant.output()
@@ -43,8 +44,15 @@ def test_realtime_plant_ends_after_its_duration_of_samples(procs, probe):
     me = probe.consume_blocks(NS)
     assert me == "/probe"
     # no band source: the plant holds its initial band value (held_samples); normal scheduling
-    plant = procs.node("plant", mode="realtime", case=1, duration=duration, exit_when_complete=True,
-                       realtime_priority=0, wait_for_subscriber="probe")
+    plant = procs.node(
+        "plant",
+        mode="realtime",
+        case=1,
+        duration=duration,
+        exit_when_complete=True,
+        realtime_priority=0,
+        wait_for_subscriber="probe",
+    )
     status = plant.wait(timeout=60)
     # 0, or 3 on a machine too loaded to hold real time (then it says so): either way it ended
     assert status in (0, contract.EXIT_REAL_TIME_NOT_HELD), plant.log()

@@ -51,10 +51,10 @@ def test_two_sim_rigs_on_one_domain_stay_apart(procs, probe):
         me = probe.consume_blocks(ns)
     for k, (ns, (case, duration)) in enumerate(rigs.items()):
         ros = ["--ros-args", "-r", f"__ns:={ns}"]
-        procs.node("plant", *ros, case=case, duration=duration, publish_clock=(k == 0),
-                   wait_for_subscriber="probe")
-        procs.node("belt_drive", *ros, case=case, duration=duration,
-                   required_consumers=f"['{me}']")
+        procs.node(
+            "plant", *ros, case=case, duration=duration, publish_clock=(k == 0), wait_for_subscriber="probe"
+        )
+        procs.node("belt_drive", *ros, case=case, duration=duration, required_consumers=f"['{me}']")
     assert probe.wait_for(lambda: all(_complete(probe, ns) for ns in rigs), 120), procs.logs()
     for ns, (_case, duration) in rigs.items():
         blocks = probe.messages[f"{ns}/state_block"]
@@ -82,8 +82,14 @@ def test_a_slow_required_consumer_loses_nothing(procs, probe):
     # hold for a slow reader without the flow control (the history would overwrite them)
     me = probe.consume_blocks(ns, delay=0.02)
     procs.node("plant", case=1, duration=duration, wait_for_subscriber="probe")
-    procs.node("belt_drive", case=1, duration=duration, block_length=10, flow_window=500,
-               required_consumers=f"['{me}']")
+    procs.node(
+        "belt_drive",
+        case=1,
+        duration=duration,
+        block_length=10,
+        flow_window=500,
+        required_consumers=f"['{me}']",
+    )
     assert probe.wait_for(lambda: _complete(probe, ns), 120), procs.logs()
     blocks = probe.messages[f"{ns}/state_block"]
     n = round(duration * 1000)
@@ -104,17 +110,21 @@ def test_a_reset_starts_a_new_segment_that_completes(procs, probe):
     # slow enough (5 ms per block of 20) that the reset lands in the middle of segment 0
     me = probe.consume_blocks(ns, delay=0.005)
     procs.node("plant", case=1, duration=duration, wait_for_subscriber="probe")
-    procs.node("belt_drive", case=1, duration=duration, block_length=20, flow_window=200,
-               required_consumers=f"['{me}']")
+    procs.node(
+        "belt_drive",
+        case=1,
+        duration=duration,
+        block_length=20,
+        flow_window=200,
+        required_consumers=f"['{me}']",
+    )
     blocks = probe.messages[f"{ns}/state_block"]
     assert probe.wait_for(lambda: sum(len(b.displacement) for b in blocks) > 300, 120), procs.logs()
     answer = probe.call(Trigger, f"{ns}/plant/reset", Trigger.Request())
     assert answer.success and "segment 1" in answer.message, answer.message
     assert probe.wait_for(lambda: _complete(probe, ns) and blocks[-1].segment == 1, 120), procs.logs()
     n = round(duration * 1000)
-    assert probe.wait_for(
-        lambda: sum(len(b.displacement) for b in blocks if b.segment == 1) >= n + 1, 60
-    )
+    assert probe.wait_for(lambda: sum(len(b.displacement) for b in blocks if b.segment == 1) >= n + 1, 60)
     codes = procs.stop_all()
     assert {b.segment for b in blocks} == {0, 1}
     first = _segment(blocks, 0)  # a consecutive prefix of the run, cut by the reset

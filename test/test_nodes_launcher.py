@@ -8,7 +8,15 @@ import yaml
 def test_lubrig_rig_sim_case(procs, tmp_path):
     out = tmp_path / "run"
     result = procs.run_script(
-        "lubrig", "rig", "--case", "1", "--duration", "1.5", "--bag", str(out), "--no-recorder",
+        "lubrig",
+        "rig",
+        "--case",
+        "1",
+        "--duration",
+        "1.5",
+        "--bag",
+        str(out),
+        "--no-recorder",
         timeout=180,
     )
     assert result.returncode == 0, result.stdout + result.stderr

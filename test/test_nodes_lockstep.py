@@ -34,8 +34,16 @@ def test_lockstep_with_an_answering_band_source_equals_simulate(procs, probe, tm
     run.write_text(config.to_yaml())
     band = band_samples(config, 0, config.samples)
     bag = tmp_path / "bag"
-    rec = procs.module("lubrig_ros.nodes.recorder", "-o", str(bag), "--use-sim-time", "--topics",
-                       "state_block", "band_velocity_block", "run_complete")
+    rec = procs.module(
+        "lubrig_ros.nodes.recorder",
+        "-o",
+        str(bag),
+        "--use-sim-time",
+        "--topics",
+        "state_block",
+        "band_velocity_block",
+        "run_complete",
+    )
     rec.wait_for_output("recorder: recording", 120)
     answer = probe.publisher(f"{NS}/band_velocity_block", BandVelocityBlock, qos_profile(contract.BLOCK_QOS))
     answered: set[int] = set()
@@ -44,14 +52,25 @@ def test_lockstep_with_an_answering_band_source_equals_simulate(procs, probe, tm
         k = int(msg.sample_index)
         if k < band.size and k not in answered:  # a state repeated by the plant's heartbeat: once
             answered.add(k)
-            answer.publish(BandVelocityBlock(sample_period=1e-3, first_sample_index=k,
-                                             segment=int(msg.segment), band_velocity=[float(band[k])]))
+            answer.publish(
+                BandVelocityBlock(
+                    sample_period=1e-3,
+                    first_sample_index=k,
+                    segment=int(msg.segment),
+                    band_velocity=[float(band[k])],
+                )
+            )
 
     probe.node.create_subscription(RigState, f"{NS}/state", on_state, common.STREAM_QOS)
     probe.subscribe(f"{NS}/run_complete", Bool, common.LATCHED_QOS)
     probe.subscribe("/diagnostics", DiagnosticArray)
-    plant = procs.node("plant", mode="lockstep", config_file=str(run), wait_for_subscriber="lubrig_recorder",
-                       diagnostics_period=0.5)
+    plant = procs.node(
+        "plant",
+        mode="lockstep",
+        config_file=str(run),
+        wait_for_subscriber="lubrig_recorder",
+        diagnostics_period=0.5,
+    )
     done = f"{NS}/run_complete"
     assert probe.wait_for(lambda: any(m.data for m in probe.messages[done]), 240), procs.logs()
 

@@ -40,10 +40,24 @@ def test_nodes_in_a_namespace_with_a_relative_remap(procs, probe):
     ros_args = ["--ros-args", "-r", f"__ns:={NS}", "-r", f"band_velocity_block:={BAND}"]
     # scalar_topics: the optional Float64 topics too (every contract topic exists under /rigA);
     # a flow window the probe's Float64 queues (depth 1000) hold
-    procs.node("plant", *ros_args, case=1, duration=DURATION, wait_for_subscriber="probe",
-               scalar_topics=True, publish_clock=True)
-    procs.node("belt_drive", *ros_args, case=1, duration=DURATION, wait_for_subscriber="probe",
-               flow_window=300, required_consumers=f"['{me}']")
+    procs.node(
+        "plant",
+        *ros_args,
+        case=1,
+        duration=DURATION,
+        wait_for_subscriber="probe",
+        scalar_topics=True,
+        publish_clock=True,
+    )
+    procs.node(
+        "belt_drive",
+        *ros_args,
+        case=1,
+        duration=DURATION,
+        wait_for_subscriber="probe",
+        flow_window=300,
+        required_consumers=f"['{me}']",
+    )
     procs.node("analysis", *ros_args, case=1, per_sample_input=True)  # its state subscription too
     done = probe.wait_for(lambda: any(m.data for m in probe.messages[f"{NS}/run_complete"]), 60)
     assert done, procs.logs()
@@ -64,6 +78,7 @@ def test_nodes_in_a_namespace_with_a_relative_remap(procs, probe):
         assert services[f"{NS}/{s.name}"] == [s.srvtype], (s.name, services)
     for node in ("plant", "belt_drive", "analysis"):  # parameter services move with the node
         assert f"{NS}/{node}/set_parameters" in services, sorted(services)
+
     def names() -> set[tuple[str, str]]:
         return set(probe.node.get_node_names_and_namespaces())
 
@@ -87,7 +102,11 @@ def test_nodes_in_a_namespace_with_a_relative_remap(procs, probe):
 def test_topic_namespace_other_than_the_node_namespace_is_refused(ros_env):
     res = subprocess.run(
         [str(BIN / "plant"), "--ros-args", "-r", "__ns:=/rigB", "-p", "topic_namespace:=/rigC"],
-        capture_output=True, text=True, timeout=60, env=ros_env, check=False,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=ros_env,
+        check=False,
     )
     assert res.returncode == 2
     out = res.stdout + res.stderr
@@ -98,9 +117,24 @@ def test_topic_namespace_other_than_the_node_namespace_is_refused(ros_env):
 def test_lubrig_rig_namespace(tmp_path, ros_env):
     out = tmp_path / "run"
     res = subprocess.run(
-        [str(BIN / "lubrig"), "rig", "--case", "1", "--duration", "1", "--bag", str(out),
-         "--namespace", "/rig_2", "--no-report"],
-        env=ros_env, capture_output=True, text=True, timeout=120, check=False,
+        [
+            str(BIN / "lubrig"),
+            "rig",
+            "--case",
+            "1",
+            "--duration",
+            "1",
+            "--bag",
+            str(out),
+            "--namespace",
+            "/rig_2",
+            "--no-report",
+        ],
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
     )
     assert res.returncode == 0, res.stdout + res.stderr
     assert "namespace /rig_2" in res.stdout
@@ -109,13 +143,21 @@ def test_lubrig_rig_namespace(tmp_path, ros_env):
     with Reader(out / "bag") as reader:  # an independent reader: every topic under /rig_2
         recorded = {c.topic for c in reader.connections}
     # sim: no per-sample topics (state: realtime; scalar topics: off by default)
-    per_sample = {f"/rig_2/{n}" for n in ("state", "displacement", "velocity", "friction_coefficient",
-                                          "band_velocity")}
+    per_sample = {
+        f"/rig_2/{n}" for n in ("state", "displacement", "velocity", "friction_coefficient", "band_velocity")
+    }
     assert {t.name for t in contract.documented_topics("/rig_2").values()} - {"/rig_2/run_config"} - (
         per_sample
     ) <= (
-        recorded | {"/rig_2/wavelet_image", "/rig_2/wavelet_power", "/rig_2/dominant_frequency",
-                    "/rig_2/oscillation_growing", "/rig_2/wavelet_frame", "/rig_2/stability"}
+        recorded
+        | {
+            "/rig_2/wavelet_image",
+            "/rig_2/wavelet_power",
+            "/rig_2/dominant_frequency",
+            "/rig_2/oscillation_growing",
+            "/rig_2/wavelet_frame",
+            "/rig_2/stability",
+        }
     ), recorded
     assert not [t for t in recorded if t.startswith("/lubrig")], recorded
     with Reader(out / "bag") as reader:  # the state blocks of the 1 s run (default block length)
@@ -123,7 +165,10 @@ def test_lubrig_rig_namespace(tmp_path, ros_env):
     assert counts["/rig_2/state_block"] == math.ceil(1000 / contract.DEFAULT_BLOCK_LENGTH), counts
     bad = subprocess.run(
         [str(BIN / "lubrig"), "rig", "--case", "1", "--bag", str(tmp_path / "x"), "--namespace", "rig-2"],
-        env=ros_env, capture_output=True, text=True, timeout=60, check=False,
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
     )
     assert bad.returncode == 2 and "--namespace='rig-2' is not valid" in bad.stderr, bad.stderr
-

@@ -28,8 +28,27 @@ from lubrig_ros.nodes.interfaces import message_class, qos_profile
 NS = contract.DEFAULT_NAMESPACE
 NODES = ("plant", "belt_drive", "analysis")
 VALUES: tuple[Any, ...] = (
-    math.nan, math.inf, -math.inf, -1.0, 0.0, 1e308, -1e308, 5e-324, -5e-324, 1e-7, 1000.0, 2**62,
-    -1, 0, 1, "", "garbage", True, False, [1.0, 2.0], ["x"],
+    math.nan,
+    math.inf,
+    -math.inf,
+    -1.0,
+    0.0,
+    1e308,
+    -1e308,
+    5e-324,
+    -5e-324,
+    1e-7,
+    1000.0,
+    2**62,
+    -1,
+    0,
+    1,
+    "",
+    "garbage",
+    True,
+    False,
+    [1.0, 2.0],
+    ["x"],
 )
 PER_PARAMETER = 6
 
@@ -72,7 +91,9 @@ def test_no_value_of_any_type_kills_a_node_or_is_published_non_finite(procs, pro
         )
     run_config = contract.topic("run_config").resolved(NS)
     probe.node.create_subscription(
-        message_class(run_config.msgtype), run_config.name, lambda m: configs.append(m.data),
+        message_class(run_config.msgtype),
+        run_config.name,
+        lambda m: configs.append(m.data),
         qos_profile(run_config.qos),
     )
     extra = {"max_lag": 10.0} if mode == "realtime" else {}
@@ -103,8 +124,10 @@ def test_no_value_of_any_type_kills_a_node_or_is_published_non_finite(procs, pro
                     refused += 1
                     assert result.reason, (node, name, value)
                     # rclpy's own refusals (type, read-only) may not name it; ours must
-                    assert name in result.reason or "read-only" in result.reason.lower() or (
-                        "type" in result.reason.lower()
+                    assert (
+                        name in result.reason
+                        or "read-only" in result.reason.lower()
+                        or ("type" in result.reason.lower())
                     ), (node, name, value, result.reason)
         assert procs[node].running(), procs.logs()
     assert not outside, outside[:20]

@@ -210,13 +210,17 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
 
     assert probe.wait_for(lambda: len(called("pause")) == 2 and called("reset"), 10), procs.log("plant")
     assert all(f"called by {caller} (request " in ln for ln in called("pause") + called("reset")), (
-        caller, called("pause"), called("reset"))
+        caller,
+        called("pause"),
+        called("reset"),
+    )
     codes = procs.stop_all()
     assert all(code == 0 for code in codes.values()), (codes, procs.logs())
 
 
 def test_invalid_realtime_priority_is_refused_at_start(procs):
-    res = procs.run_script("plant", "--ros-args", "-p", "mode:=realtime", "-p", "realtime_priority:=150",
-                           timeout=60)
+    res = procs.run_script(
+        "plant", "--ros-args", "-p", "mode:=realtime", "-p", "realtime_priority:=150", timeout=60
+    )
     assert res.returncode == 2
     assert "realtime_priority=150 is not valid; expected 0..99" in res.stdout + res.stderr

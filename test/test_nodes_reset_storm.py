@@ -43,8 +43,14 @@ def test_fifty_resets_and_pauses_leave_a_run_that_completes(procs, probe):
     probe.subscribe(f"{NS}/run_complete", Bool, common.LATCHED_QOS)
     me = probe.consume_blocks(NS, delay=0.002)
     procs.node("plant", case=1, duration=DURATION, wait_for_subscriber="probe")
-    procs.node("belt_drive", case=1, duration=DURATION, block_length=20, flow_window=200,
-               required_consumers=f"['{me}']")
+    procs.node(
+        "belt_drive",
+        case=1,
+        duration=DURATION,
+        block_length=20,
+        flow_window=200,
+        required_consumers=f"['{me}']",
+    )
     blocks = probe.messages[f"{NS}/state_block"]
     assert probe.wait_for(lambda: len(blocks) > 2, 120), procs.logs()
     rng = random.Random(11)

@@ -46,8 +46,7 @@ def test_rig_in_loop_bad_input_and_staleness(procs, probe):
     # scalar_topics: the per-quantity Float64 topics for simple tools, beside RigState
     # max_lag far beyond any stall of a loaded machine: this test is about the input (the lag
     # rule: test_plant_realtime.py, test_rig_realtime_policy.py)
-    plant = procs.node("plant", mode="rig_in_loop", diagnostics_period=0.25, scalar_topics=True,
-                       max_lag=10.0)
+    plant = procs.node("plant", mode="rig_in_loop", diagnostics_period=0.25, scalar_topics=True, max_lag=10.0)
     pub = probe.publisher(f"{NS}/band_velocity", Float64, common.STREAM_QOS)
     x, state = f"{NS}/displacement", f"{NS}/state"
     assert probe.wait_for(lambda: len(probe.messages[x]) > 200, 60), procs.logs()
@@ -83,8 +82,9 @@ def test_rig_in_loop_bad_input_and_staleness(procs, probe):
     feeder.start()
     try:
         # bad values are rejected and counted, the input is live
-        assert probe.wait_for(lambda: int(band().get("rejected", 0)) > 20 and band()["stale"] == "false",
-                              60), band()
+        assert probe.wait_for(
+            lambda: int(band().get("rejected", 0)) > 20 and band()["stale"] == "false", 60
+        ), band()
         report = band()
         assert report["last_rejected_value"] in ("nan", "-5.0", "-inf")
         # states keep coming, one per 1 ms of rig time, rig time never ahead of the wall clock

@@ -36,7 +36,9 @@ def test_reset_with_new_parameters_republishes_run_config_and_the_bag_keeps_both
     procs.node("plant", case=1, duration=30.0, wait_for_subscriber="lubrig_recorder")
     participants = lambda: {m.participant for m in probe.messages[f"{NS}/flow_progress"]}  # noqa: E731
     assert probe.wait_for(lambda: {f"{NS}/plant", f"{NS}/lubrig_recorder"} <= participants(), 120), (
-        participants(), procs.logs())
+        participants(),
+        procs.logs(),
+    )
     assert probe.wait_for(lambda: probe.messages[f"{NS}/run_config"], 60), procs.logs()
     first = _damping(probe.messages[f"{NS}/run_config"][-1].data)
     assert first != 0.05
@@ -49,8 +51,10 @@ def test_reset_with_new_parameters_republishes_run_config_and_the_bag_keeps_both
     store = typestore()
 
     def recorded() -> list[float]:
-        return [_damping(store.deserialize_cdr(data, msgtype).data)
-                for _topic, msgtype, _t, data in read_messages(bag, [f"{NS}/run_config"])]
+        return [
+            _damping(store.deserialize_cdr(data, msgtype).data)
+            for _topic, msgtype, _t, data in read_messages(bag, [f"{NS}/run_config"])
+        ]
 
     assert rec.stop() == 0, rec.log()
     versions = recorded()

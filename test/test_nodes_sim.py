@@ -33,8 +33,13 @@ def block_columns(blocks: list, fields: tuple[str, ...]) -> dict[str, np.ndarray
 
 
 STATE_FIELDS = (
-    "displacement", "velocity", "friction_coefficient", "friction_force", "band_velocity",
-    "relative_velocity", "belt_travel",
+    "displacement",
+    "velocity",
+    "friction_coefficient",
+    "friction_force",
+    "band_velocity",
+    "relative_velocity",
+    "belt_travel",
 )
 
 
@@ -49,12 +54,17 @@ def test_sim_case1_equals_core_simulate(procs, probe):
     assert me == "/probe"
     # a block length that does not divide the run: the last block is shorter
     procs.node("plant", case=1, duration=DURATION, publish_clock=True, wait_for_subscriber="probe")
-    procs.node("belt_drive", case=1, duration=DURATION, block_length=37, flow_window=74,
-               required_consumers=f"['{me}']", wait_for_subscriber="probe")
-    procs.node("analysis", case=1)
-    done = probe.wait_for(
-        lambda: any(m.data for m in probe.messages[f"{ns}/run_complete"]), timeout=120
+    procs.node(
+        "belt_drive",
+        case=1,
+        duration=DURATION,
+        block_length=37,
+        flow_window=74,
+        required_consumers=f"['{me}']",
+        wait_for_subscriber="probe",
     )
+    procs.node("analysis", case=1)
+    done = probe.wait_for(lambda: any(m.data for m in probe.messages[f"{ns}/run_complete"]), timeout=120)
     assert done, procs.logs()
     n = round(DURATION * 1000)
     blocks = probe.messages[f"{ns}/state_block"]

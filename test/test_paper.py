@@ -27,7 +27,7 @@ def test_paper_writes_scorecard_and_embeds_every_figure(tmp_path: Path) -> None:
     rows = [line for line in scorecard.splitlines() if line.startswith("| ") and "criterion" not in line]
     assert [r.split(" | ")[0][2:] for r in rows] == [s.key for s in STATEMENTS]
     for row in rows:
-        marks = row.rstrip(" |").split(" | ")[-len(CONVENTIONS):]
+        marks = row.rstrip(" |").split(" | ")[-len(CONVENTIONS) :]
         assert all(m in ("✓", "✗") for m in marks), row
     landmarks = [r for r in rows if r.startswith("| F")]
     assert len(landmarks) == 3 and all(r.endswith("| ✓ | ✓ | ✓ |") for r in landmarks)
@@ -52,7 +52,10 @@ def test_paper_writes_scorecard_and_embeds_every_figure(tmp_path: Path) -> None:
 def test_paper_bad_duration_one_line() -> None:
     res = subprocess.run(
         [sys.executable, "-m", "lubrig_ros.cli.main", "paper", "--out", "/tmp/x", "--duration", "1"],
-        capture_output=True, text=True, timeout=60, check=False,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
     )
     assert res.returncode == 2
     assert len(res.stderr.strip().splitlines()) == 1 and "--duration" in res.stderr

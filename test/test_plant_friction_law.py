@@ -44,7 +44,8 @@ def stribeck():
 def test_plant_parameters_are_the_laws_fields():
     names = [p.name for p in contract.plant_parameters("stribeck")]
     assert [n for n in names if n.startswith("friction.")] == [
-        "friction.law", *(f"friction.{n}" for n in STRIBECK_FIELDS)
+        "friction.law",
+        *(f"friction.{n}" for n in STRIBECK_FIELDS),
     ]
     assert "friction.shear_modulus" not in names
     assert contract.parameter("plant", "friction.shear_modulus")  # the default law's
@@ -72,7 +73,9 @@ def test_stribeck_defaults_rebuild_the_configuration(stribeck):
 def test_stribeck_run_through_the_plant_session_equals_core_simulate(stribeck):
     samples = []
     session = PlantSession(
-        stribeck, PlantSettings("sim"), config=config_from(stribeck, parameter_defaults(stribeck)),
+        stribeck,
+        PlantSettings("sim"),
+        config=config_from(stribeck, parameter_defaults(stribeck)),
         on_sample=samples.append,
     )
     for value in band_samples(stribeck, 0, stribeck.samples):

@@ -44,16 +44,20 @@ class Sink:
 
     def session(self, config, mode="realtime", **settings) -> PlantSession:
         return PlantSession(
-            config, PlantSettings(mode, **settings), on_sample=self.on_sample,
-            on_block=self.blocks.append, on_fault=self.faults.append,
+            config,
+            PlantSettings(mode, **settings),
+            on_sample=self.on_sample,
+            on_block=self.blocks.append,
+            on_fault=self.faults.append,
             log=lambda level, text: self.logs.append((level, text)),
         )
 
 
 def _run_until(session: PlantSession, sink: Sink, count: int, limit: float = 30.0) -> None:
     end = time.monotonic() + limit
-    session.run_realtime(lambda: len(sink.samples) >= count or time.monotonic() > end or
-                         session.fault is not None)
+    session.run_realtime(
+        lambda: len(sink.samples) >= count or time.monotonic() > end or session.fault is not None
+    )
 
 
 def _indices(blocks: list[PlantBlock]) -> list[int]:
@@ -151,7 +155,11 @@ def test_lockstep_one_sample_per_band_value_and_repeats_dropped(case1):
 
 
 def test_settings_of_the_lag_rule_are_checked():
-    for bad in ({"lag_policy": "drift"}, {"max_lag": 0.0}, {"max_lag": float("nan")},
-                {"output_block_length": 0}):
+    for bad in (
+        {"lag_policy": "drift"},
+        {"max_lag": 0.0},
+        {"max_lag": float("nan")},
+        {"output_block_length": 0},
+    ):
         with pytest.raises(ValueError, match=next(iter(bad))):
             PlantSettings("realtime", **bad)

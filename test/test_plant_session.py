@@ -230,8 +230,9 @@ def test_the_realtime_loop_retries_an_overrun_tick_and_loses_no_sample():
     config = default_config().with_overrides(convention="physical")
     rec = Recorder()
     # max_lag far beyond this run's lateness: the overrun rule alone (falling behind: below)
-    session = rec.session(config, mode="rig_in_loop", clock=time.perf_counter, tick_step_attempts=1,
-                          max_lag=10.0)
+    session = rec.session(
+        config, mode="rig_in_loop", clock=time.perf_counter, tick_step_attempts=1, max_lag=10.0
+    )
     session.band_input(2e-8)  # sticking: several substeps per sample
     session.run_realtime(lambda: len(rec.samples) >= 60)
     assert session.overruns > 0
@@ -346,8 +347,12 @@ class FailingOnce:
                 raise ArithmeticError("Newton did not converge")
             traj = self.inner.advance(band)
             return Trajectory(
-                traj.time, traj.displacement * np.nan, traj.velocity, traj.friction_coefficient,
-                traj.band_velocity, traj.relative_velocity,
+                traj.time,
+                traj.displacement * np.nan,
+                traj.velocity,
+                traj.friction_coefficient,
+                traj.band_velocity,
+                traj.relative_velocity,
             )
         return self.inner.advance(band)
 
@@ -438,8 +443,12 @@ def test_parameter_updates_are_checked_and_applied_only_at_reset(case1):
 @pytest.mark.parametrize(
     "kwargs",
     [
-        {"mode": "fast"}, {"band_velocity_limit": 0.0}, {"stale_timeout": math.nan},
-        {"tick_step_attempts": 0}, {"tick_step_attempts": 2.5}, {"tick_step_attempts": True},
+        {"mode": "fast"},
+        {"band_velocity_limit": 0.0},
+        {"stale_timeout": math.nan},
+        {"tick_step_attempts": 0},
+        {"tick_step_attempts": 2.5},
+        {"tick_step_attempts": True},
     ],
 )
 def test_settings_are_validated(kwargs):

@@ -30,8 +30,12 @@ class Sink:
     def session(self, config, mode="sim", per_sample=False) -> PlantSession:
         extra = {"on_sample": self.samples.append} if per_sample else {}
         return PlantSession(
-            config, PlantSettings(mode), on_block=self.blocks.append,
-            on_complete=self.complete.append, log=lambda lv, t: self.logs.append((lv, t)), **extra,
+            config,
+            PlantSettings(mode),
+            on_block=self.blocks.append,
+            on_complete=self.complete.append,
+            log=lambda lv, t: self.logs.append((lv, t)),
+            **extra,
         )
 
     def column(self, name: str) -> np.ndarray:

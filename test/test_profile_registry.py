@@ -65,7 +65,10 @@ def square() -> Iterator[type[SquareBand]]:
 def test_builtin_kinds_are_registered() -> None:
     assert profile_kinds()[:4] == ["constant", "cycle", "sine", "table"]
     assert [profile_class(k) for k in ("constant", "cycle", "sine", "table")] == [
-        ConstantBand, RegularCycle, SinusoidalBand, TableBand
+        ConstantBand,
+        RegularCycle,
+        SinusoidalBand,
+        TableBand,
     ]
     with pytest.raises(ParameterError, match=r"kind='sawtooth' is not valid; expected one of \['constant'"):
         profile_class("sawtooth")

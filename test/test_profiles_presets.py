@@ -15,9 +15,15 @@ from lubrig_ros.core.profiles import (
 )
 
 TABLE1 = {
-    1: (1e-7, 2e-7, 0.01, 0.2, 4.76), 2: (1e-7, 2e-7, 0.1, 0.2, 3.33), 3: (1e-7, 2e-7, 1, 0.2, 0.83),
-    4: (1e-7, 10e-7, 0.01, 0.2, 4.76), 5: (1e-7, 10e-7, 0.1, 0.2, 3.33), 6: (1e-7, 10e-7, 1, 0.2, 0.83),
-    7: (1e-7, 10e-7, 0.08, 0.02, 10), 8: (1e-7, 10e-7, 0.04, 0.01, 20), 9: (1e-7, 2e-7, 0.01, 0.02, 33.3),
+    1: (1e-7, 2e-7, 0.01, 0.2, 4.76),
+    2: (1e-7, 2e-7, 0.1, 0.2, 3.33),
+    3: (1e-7, 2e-7, 1, 0.2, 0.83),
+    4: (1e-7, 10e-7, 0.01, 0.2, 4.76),
+    5: (1e-7, 10e-7, 0.1, 0.2, 3.33),
+    6: (1e-7, 10e-7, 1, 0.2, 0.83),
+    7: (1e-7, 10e-7, 0.08, 0.02, 10),
+    8: (1e-7, 10e-7, 0.04, 0.01, 20),
+    9: (1e-7, 2e-7, 0.01, 0.02, 33.3),
     10: (1e-7, 10e-7, 0.01, 0.02, 33.3),
 }
 
@@ -46,7 +52,9 @@ def test_profile_dict_round_trip(tmp_path):
     csv = tmp_path / "p.csv"
     csv.write_text("# recorded\ntime_s,band_velocity_m_s\n0,1e-7\n1,3e-7\n")
     for profile in (
-        ConstantBand(2e-8), RegularCycle(1e-7, 1e-6, 0.08, 0.02), SinusoidalBand(1.5e-7, 5e-8, 2.0),
+        ConstantBand(2e-8),
+        RegularCycle(1e-7, 1e-6, 0.08, 0.02),
+        SinusoidalBand(1.5e-7, 5e-8, 2.0),
         TableBand.from_csv(csv),
     ):
         assert profile_from_dict(profile_to_dict(profile)) == profile

@@ -23,20 +23,37 @@ from lubrig_ros.bag import check_bag, read_arrays, repair_bag
 
 SAMPLES = 3000  # 6 topics: 18,000 messages
 #: what the synthetic source publishes per sample (--scalars --clock): RigState on state
-SOURCE_TOPICS = {"/lubrig/state", "/lubrig/band_velocity", "/lubrig/displacement", "/lubrig/velocity",
-                 "/lubrig/friction_coefficient", "/clock"}
+SOURCE_TOPICS = {
+    "/lubrig/state",
+    "/lubrig/band_velocity",
+    "/lubrig/displacement",
+    "/lubrig/velocity",
+    "/lubrig/friction_coefficient",
+    "/clock",
+}
 
 
-def _record(procs, tmp_path: Path, samples: int, extra: tuple[str, ...] = (),
-            source: tuple[str, ...] = ("--flow-control", "100")):
+def _record(
+    procs,
+    tmp_path: Path,
+    samples: int,
+    extra: tuple[str, ...] = (),
+    source: tuple[str, ...] = ("--flow-control", "100"),
+):
     cfg = tmp_path / "run.yaml"
     cfg.write_text("plant:\n  mass_kg: 1.0\nbelt:\n  velocity_m_s: 0.2\n")
     bag = tmp_path / "bag"
     rec = procs.module("lubrig_ros.nodes.recorder", "-o", str(bag), "--config", str(cfg), *extra)
     rec.wait_for_output("recording", timeout=90)
     pub = procs.run_module(
-        "lubrig_testkit.synthetic", "publish", "--samples", str(samples), "--scalars", "--clock",
-        *source, timeout=180,
+        "lubrig_testkit.synthetic",
+        "publish",
+        "--samples",
+        str(samples),
+        "--scalars",
+        "--clock",
+        *source,
+        timeout=180,
     )
     assert pub.returncode == 0, pub.stdout + pub.stderr
     published = json.loads(pub.stdout.strip().splitlines()[-1])["published"]
@@ -55,8 +72,7 @@ def _on_disk(bag: Path, scratch: Path) -> dict[str, int]:
     shutil.rmtree(scratch, ignore_errors=True)
     shutil.copytree(bag, scratch)
     repair_bag(scratch)
-    return {t.name: t.count for t in check_bag(scratch).topics
-            if t.count and t.name != "/lubrig/run_config"}
+    return {t.name: t.count for t in check_bag(scratch).topics if t.count and t.name != "/lubrig/run_config"}
 
 
 def _expect_all(bag: Path, published: dict[str, int]) -> None:
@@ -90,8 +106,13 @@ def test_sigint_finalizes_complete_bag(procs, tmp_path: Path) -> None:
 def test_sigkill_then_repair_keeps_flushed_messages(procs, tmp_path: Path) -> None:
     rec, bag, _cfg, published = _record(procs, tmp_path, 2000, ("--flush-interval", "0.3"))
     # kill once every published message is flushed: a repair of a copy of the files keeps them all
-    wait_until(lambda: _on_disk(bag, tmp_path / "copy") == published, 120, "all messages flushed",
-               alive=(rec,), every=0.5)
+    wait_until(
+        lambda: _on_disk(bag, tmp_path / "copy") == published,
+        120,
+        "all messages flushed",
+        alive=(rec,),
+        every=0.5,
+    )
     rec.kill()
     assert not (bag / "metadata.yaml").exists()
     report = repair_bag(bag)
@@ -171,8 +192,9 @@ def test_worker_dying_before_ready_is_one_error_line(procs, ros_env, tmp_path: P
     is "not ready after"); how quickly is not a test's business.
     """
     env = {**ros_env, "ROS_DOMAIN_ID": "99999"}
-    res = procs.run_module("lubrig_ros.nodes.recorder", "-o", str(tmp_path / "bag"), "--topics",
-                           "state", env=env)
+    res = procs.run_module(
+        "lubrig_ros.nodes.recorder", "-o", str(tmp_path / "bag"), "--topics", "state", env=env
+    )
     assert res.returncode == 2, res.stderr
     ours = [line for line in res.stderr.splitlines() if line.startswith("recorder:")]
     assert ours == [ours[0]] and "worker 0 (/lubrig/state) exited with status" in ours[0], res.stderr

@@ -46,14 +46,37 @@ TOPICS = ("state_block", "band_velocity_block", "flow_progress", "/clock")
 
 
 def _recorder_argv(bag: Path, cfg: Path) -> list[str]:
-    return [PYTHON, "-m", "lubrig_ros.nodes.recorder", "-o", str(bag), "--config", str(cfg),
-            "--use-sim-time", "--topics", *TOPICS, "--flush-interval", "600"]
+    return [
+        PYTHON,
+        "-m",
+        "lubrig_ros.nodes.recorder",
+        "-o",
+        str(bag),
+        "--config",
+        str(cfg),
+        "--use-sim-time",
+        "--topics",
+        *TOPICS,
+        "--flush-interval",
+        "600",
+    ]
 
 
 def _publisher(procs):
-    return procs.module("lubrig_testkit.synthetic", "publish", "--blocks", str(BLOCK), "--samples",
-                        str(SAMPLES), "--consumer", RECORDER, "--flow-window", str(WINDOW),
-                        "--wait-subscribers", "90")
+    return procs.module(
+        "lubrig_testkit.synthetic",
+        "publish",
+        "--blocks",
+        str(BLOCK),
+        "--samples",
+        str(SAMPLES),
+        "--consumer",
+        RECORDER,
+        "--flow-window",
+        str(WINDOW),
+        "--wait-subscribers",
+        "90",
+    )
 
 
 def _listen_progress(probe) -> list:
@@ -81,6 +104,7 @@ def _settled(progress: list) -> int:
         else:
             seen[:] = [0, len(progress)]
         return seen[0] >= 10  # no new message for 10 polls of 0.05 s
+
     wait_until(quiet, 30, "flow progress settled", every=0.05)
     return _written(progress)
 
@@ -100,6 +124,7 @@ def _published_settled(pub) -> int:
         else:
             seen[:] = [0, text]
         return seen[0] >= 20  # no new block for 20 polls of 0.05 s
+
     wait_until(quiet, 60, "the paced plant stalled", every=0.05)
     counts = [int(line.split()[1]) for line in pub.errors().splitlines() if line.startswith("published ")]
     return max(counts, default=0)
@@ -135,16 +160,22 @@ def _config(tmp_path: Path) -> Path:
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_sigkill_at_a_random_moment_loses_at_most_the_flush_bound(procs, probe, tmp_path: Path,
-                                                                  seed: int) -> None:
+def test_sigkill_at_a_random_moment_loses_at_most_the_flush_bound(
+    procs, probe, tmp_path: Path, seed: int
+) -> None:
     progress = _listen_progress(probe)
     bag = tmp_path / "bag"
     rec = procs.command("recorder", _recorder_argv(bag, _config(tmp_path)))
     rec.wait_for_output("recording", timeout=90)
     pub = _publisher(procs)
     target = int(np.random.default_rng(seed).integers(2 * RATE, SAMPLES - 2 * RATE))
-    wait_until(lambda: _written(progress) >= target, 240, f"recorder wrote {target} samples",
-               alive=(rec,), every=0.005)
+    wait_until(
+        lambda: _written(progress) >= target,
+        240,
+        f"recorder wrote {target} samples",
+        alive=(rec,),
+        every=0.005,
+    )
     rec.popen.send_signal(signal.SIGKILL)  # the writer process only, as a crash would
     rec.kill()  # then its worker processes
     written = _settled(progress)
@@ -158,8 +189,10 @@ def test_sigkill_at_a_random_moment_loses_at_most_the_flush_bound(procs, probe, 
     firsts, values, _counts = _blocks_in(tmp_path / "repaired")
     kept = _gap_free_prefix(firsts, values)
     lost = written - kept
-    print(f"seed {seed}: killed at {written} samples written ({published} published), {kept} in the "
-          f"bag, lost {lost} ({lost / RATE:.3f} s of rig time); bound {BOUND}; repair: {report.damage}")
+    print(
+        f"seed {seed}: killed at {written} samples written ({published} published), {kept} in the "
+        f"bag, lost {lost} ({lost / RATE:.3f} s of rig time); bound {BOUND}; repair: {report.damage}"
+    )
     assert lost <= BOUND, (written, kept)  # what the recorder said it had written
     assert kept <= published and published - kept <= BOUND + WINDOW  # what the plant published
     assert kept >= target - BOUND
@@ -187,8 +220,12 @@ def small_file_system(tmp_path: Path):
     """A real tmpfs of LIMIT bytes mounted at tmp_path/fs (needs CAP_SYS_ADMIN; skipped otherwise)."""
     mount = tmp_path / "fs"
     mount.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={LIMIT}", "tmpfs", str(mount)],
-                         capture_output=True, text=True, check=False)
+    res = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", f"size={LIMIT}", "tmpfs", str(mount)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     if res.returncode != 0:
         pytest.skip(f"cannot mount a small tmpfs here: {res.stderr.strip()}")
     try:
@@ -202,8 +239,9 @@ def test_full_disk_loses_at_most_the_flush_bound_and_counts_are_the_bag(procs, p
     _record_until_full(procs, probe, tmp_path, tmp_path / "bag", _file_size_cap(LIMIT), "File too large")
 
 
-def test_small_file_system_loses_at_most_the_flush_bound(procs, probe, tmp_path: Path,
-                                                        small_file_system: Path) -> None:
+def test_small_file_system_loses_at_most_the_flush_bound(
+    procs, probe, tmp_path: Path, small_file_system: Path
+) -> None:
     """A real small file system (tmpfs of LIMIT bytes): ENOSPC."""
     _record_until_full(procs, probe, tmp_path, small_file_system / "bag", None, "No space left on device")
 
@@ -226,8 +264,10 @@ def _record_until_full(procs, probe, tmp_path: Path, bag: Path, preexec, error_t
     assert not verify_bag(repaired).structural
     firsts, values, counts = _blocks_in(repaired)
     kept = _gap_free_prefix(firsts, values)
-    print(f"disk full: {published} samples published, {kept} in the bag; the writer lost {unflushed} "
-          f"messages not yet flushed")
+    print(
+        f"disk full: {published} samples published, {kept} in the bag; the writer lost {unflushed} "
+        f"messages not yet flushed"
+    )
     assert 0 < kept < SAMPLES
     assert kept <= published and published - kept <= BOUND + WINDOW, (published, kept)
     assert unflushed < FLUSH_MESSAGES

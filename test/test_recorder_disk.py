@@ -45,15 +45,29 @@ def test_file_size_limit_stops_recording_cleanly(procs, tmp_path: Path) -> None:
     cfg.write_text("plant:\n  mass_kg: 1.0\n")
     bag = tmp_path / "bag"
     argv = [
-        PYTHON, "-m", "lubrig_ros.nodes.recorder",
-        "-o", str(bag), "--config", str(cfg), "--flush-interval", "0.2",
+        PYTHON,
+        "-m",
+        "lubrig_ros.nodes.recorder",
+        "-o",
+        str(bag),
+        "--config",
+        str(cfg),
+        "--flush-interval",
+        "0.2",
     ]
     rec = procs.command("recorder", argv, preexec_fn=_file_size_cap(LIMIT))
     rec.wait_for_output("recording", timeout=90)
     # flow control: the publisher goes on once the recorder has every sample (or has stopped)
     pub = procs.run_module(
-        "lubrig_testkit.synthetic", "publish", "--samples", str(SAMPLES), "--flow-control", "100",
-        "--scalars", "--clock", timeout=180,
+        "lubrig_testkit.synthetic",
+        "publish",
+        "--samples",
+        str(SAMPLES),
+        "--flow-control",
+        "100",
+        "--scalars",
+        "--clock",
+        timeout=180,
     )
     assert pub.returncode == 0, pub.stdout + pub.stderr
     published = json.loads(pub.stdout.strip().splitlines()[-1])["published"]

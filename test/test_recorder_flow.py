@@ -35,8 +35,18 @@ def test_sim_blocks_paced_on_the_recorders_progress(procs, tmp_path: Path) -> No
     rec = _recorder(procs, bag)
     samples, window = 6000, 500
     pub = procs.run_module(
-        "lubrig_testkit.synthetic", "publish", "--blocks", "100", "--samples", str(samples),
-        "--consumer", RECORDER_FQN, "--flow-window", str(window), "--wait-subscribers", "120",
+        "lubrig_testkit.synthetic",
+        "publish",
+        "--blocks",
+        "100",
+        "--samples",
+        str(samples),
+        "--consumer",
+        RECORDER_FQN,
+        "--flow-window",
+        str(window),
+        "--wait-subscribers",
+        "120",
         timeout=400,
     )
     assert pub.returncode == 0, pub.stdout + pub.stderr
@@ -67,8 +77,17 @@ def test_skipped_sample_index_ends_non_zero_naming_stream_and_gap(procs, tmp_pat
     bag = tmp_path / "bag"
     rec = _recorder(procs, bag)
     pub = procs.run_module(
-        "lubrig_testkit.synthetic", "publish", "--samples", "1500", "--flow-control", "100",
-        "--skip", "700", "701", "1200", timeout=300,
+        "lubrig_testkit.synthetic",
+        "publish",
+        "--samples",
+        "1500",
+        "--flow-control",
+        "100",
+        "--skip",
+        "700",
+        "701",
+        "1200",
+        timeout=300,
     )
     assert pub.returncode == 0, pub.stdout + pub.stderr
     assert rec.stop(signal.SIGINT, timeout=120) == 1, rec.log()

@@ -37,14 +37,21 @@ def test_replay_same_messages_in_order_with_their_log_times(procs, tmp_path: Pat
     w.close()
     out = tmp_path / "got.json"
     listener = procs.module(
-        "lubrig_testkit.synthetic", "listen", "--topics", *TOPICS, "/clock", "--count", str(4 * N),
-        "--timeout", "120", "--output", str(out),
+        "lubrig_testkit.synthetic",
+        "listen",
+        "--topics",
+        *TOPICS,
+        "/clock",
+        "--count",
+        str(4 * N),
+        "--timeout",
+        "120",
+        "--output",
+        str(out),
     )
     listener.wait_for_output("listening")
     started_ns = time.time_ns()
-    replay = procs.module(
-        "lubrig_ros.nodes.replay", str(bag), "--clock", "--wait-for-subscribers", "60"
-    )
+    replay = procs.module("lubrig_ros.nodes.replay", str(bag), "--clock", "--wait-for-subscribers", "60")
     assert replay.wait(timeout=120) == 0, replay.log()
     assert f"published {2 * N} messages" in replay.output()
     assert listener.wait(timeout=120) == 0, listener.log()

@@ -25,12 +25,21 @@ from lubrig_ros.core.wavelet import dominant_frequencies
 DURATION = 6.0
 SCALE_STEP = 2 ** (1 / 12)  # one wavelet scale step (dj = 1/12 octave)
 
+
 @pytest.mark.slow  # a 6 s `lubrig rig` run, then its replay
 def test_recorded_run_replayed_into_analysis_matches_offline(procs, tmp_path: Path) -> None:
     run = tmp_path / "run"
     res = procs.run_module(
-        "lubrig_ros.cli.main", "rig", "--case", "1", "--duration", str(DURATION), "--bag", str(run),
-        "--no-report", timeout=240,
+        "lubrig_ros.cli.main",
+        "rig",
+        "--case",
+        "1",
+        "--duration",
+        str(DURATION),
+        "--bag",
+        str(run),
+        "--no-report",
+        timeout=240,
     )
     assert res.returncode == 0, res.stdout + res.stderr
     bag = run / "bag"
@@ -55,16 +64,38 @@ def test_recorded_run_replayed_into_analysis_matches_offline(procs, tmp_path: Pa
             probe.subscribe("/lubrig/dominant_frequency", Float64)
             # 96 scales over 1.95..250 Hz (window 2048 at 1 kHz): 0.074 octave per scale < 1/12
             analysis = procs.script(
-                "analysis", "--ros-args", "-p", "case:=1", "-p", "use_sim_time:=true",
-                "-p", "window:=2048", "-p", "n_scales:=96", "-p", "publish_period:=0.2", env=env,
+                "analysis",
+                "--ros-args",
+                "-p",
+                "case:=1",
+                "-p",
+                "use_sim_time:=true",
+                "-p",
+                "window:=2048",
+                "-p",
+                "n_scales:=96",
+                "-p",
+                "publish_period:=0.2",
+                env=env,
             )
             replay = procs.script(
-                "lubrig", "replay", str(bag), "--clock", "--topics", "/lubrig/state_block",
-                "/lubrig/band_velocity_block", "--wait-for-subscribers", "90", env=env,
+                "lubrig",
+                "replay",
+                str(bag),
+                "--clock",
+                "--topics",
+                "/lubrig/state_block",
+                "/lubrig/band_velocity_block",
+                "--wait-for-subscribers",
+                "90",
+                env=env,
             )
             assert replay.wait(timeout=180) == 0, replay.log()
-            blocks = sum(t.count for t in check_bag(bag).topics
-                         if t.name in ("/lubrig/state_block", "/lubrig/band_velocity_block"))
+            blocks = sum(
+                t.count
+                for t in check_bag(bag).topics
+                if t.name in ("/lubrig/state_block", "/lubrig/band_velocity_block")
+            )
             assert f"published {blocks} messages" in replay.output()  # the blocks as recorded
             # an update every publish_period of rig time once 2048 samples are in: ~ (6 - 2) / 0.2;
             # on a loaded machine the analysis may still work through its input after replay ends
@@ -99,14 +130,30 @@ def test_replay_rate_and_start(procs, tmp_path: Path) -> None:
     first = 100  # --start 5 s = 100 steps of 50 ms
     expected = N - first
     listener = procs.module(
-        "lubrig_testkit.synthetic", "listen", "--topics", "displacement", "/clock",
-        "--count", str(2 * expected), "--timeout", "120", "--output", str(out),
+        "lubrig_testkit.synthetic",
+        "listen",
+        "--topics",
+        "displacement",
+        "/clock",
+        "--count",
+        str(2 * expected),
+        "--timeout",
+        "120",
+        "--output",
+        str(out),
     )
     listener.wait_for_output("listening")
     started_ns = time.time_ns()
     replay = procs.module(
-        "lubrig_ros.nodes.replay", str(bag), "--rate", str(RATE), "--start", "5", "--clock",
-        "--wait-for-subscribers", "60",
+        "lubrig_ros.nodes.replay",
+        str(bag),
+        "--rate",
+        str(RATE),
+        "--start",
+        "5",
+        "--clock",
+        "--wait-for-subscribers",
+        "60",
     )
     assert replay.wait(timeout=120) == 0, replay.log()
     assert f"published {expected} messages" in replay.output()

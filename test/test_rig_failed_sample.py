@@ -63,16 +63,21 @@ def test_a_sample_that_cannot_be_integrated_ends_the_sim_rig_naming_it(procs, tm
     (site / "broken_law.py").write_text(textwrap.dedent(LAW))
     (site / "sitecustomize.py").write_text("import broken_law  # noqa: F401\n")
     config = tmp_path / "broken.yaml"
-    config.write_text(yaml.safe_dump({
-        "name": "broken_law_run",
-        "rig": {"friction": {"law": "broken_above_test", "slope": 1e5, "normal_force": 1e-3}},
-        "band": {"kind": "sine", "mean_velocity": 1e-7, "amplitude": 1e-7, "frequency": 5.0},
-        "simulation": {"duration": 2.0},
-    }))
+    config.write_text(
+        yaml.safe_dump(
+            {
+                "name": "broken_law_run",
+                "rig": {"friction": {"law": "broken_above_test", "slope": 1e5, "normal_force": 1e-3}},
+                "band": {"kind": "sine", "mean_velocity": 1e-7, "amplitude": 1e-7, "frequency": 5.0},
+                "simulation": {"duration": 2.0},
+            }
+        )
+    )
     env = {**procs.env, "PYTHONPATH": str(site)}
     run = tmp_path / "run"
-    res = procs.run_module("lubrig_ros.cli.main", "rig", "--config", str(config), "--bag", str(run),
-                           timeout=300, env=env)
+    res = procs.run_module(
+        "lubrig_ros.cli.main", "rig", "--config", str(config), "--bag", str(run), timeout=300, env=env
+    )
     assert res.returncode == EXIT_INTEGRATION_FAILED, res.stdout + res.stderr
     line = res.stderr.strip().splitlines()[-1]
     assert line.startswith("lubrig rig: error: the run ends") and "integration failed at t = " in line, line

@@ -23,8 +23,21 @@ DURATION = 6.0
 def test_realtime_rig_holds_or_says_it_did_not(procs, tmp_path: Path, cpu_hogs, policy: str) -> None:
     cpu_hogs(4)
     run = tmp_path / "run"
-    rig = procs.script("lubrig", "rig", "--case", "1", "--mode", "realtime", "--duration", str(DURATION),
-                       "--run-dir", str(run), "--no-report", "--lag-policy", policy)
+    rig = procs.script(
+        "lubrig",
+        "rig",
+        "--case",
+        "1",
+        "--mode",
+        "realtime",
+        "--duration",
+        str(DURATION),
+        "--run-dir",
+        str(run),
+        "--no-report",
+        "--lag-policy",
+        policy,
+    )
     code = rig.wait(600)  # a guard against a hang, not a figure
     plant_log = (run / "logs" / "plant.log").read_text()
     accounting = json.loads((run / "bag" / "accounting.json").read_text())

@@ -23,7 +23,14 @@ N = round(DURATION * 1000)
 def test_rig_records_and_reports_case1(procs, tmp_path: Path) -> None:
     out = tmp_path / "run"
     res = procs.run_module(
-        "lubrig_ros.cli.main", "rig", "--case", "1", "--duration", f"{DURATION:g}", "--bag", str(out),
+        "lubrig_ros.cli.main",
+        "rig",
+        "--case",
+        "1",
+        "--duration",
+        f"{DURATION:g}",
+        "--bag",
+        str(out),
         timeout=300,
     )
     assert res.returncode == 0, res.stdout + res.stderr
@@ -43,7 +50,9 @@ def test_rig_records_and_reports_case1(procs, tmp_path: Path) -> None:
     assert accounting["streams"]["/lubrig/state_block"]["samples"] == N + 1
     with Reader(bag) as reader:  # log times are rig time: the bag spans the run
         assert reader.start_time >= 0 and reader.end_time <= (DURATION + 0.5) * 1e9, (
-            reader.start_time, reader.end_time)
+            reader.start_time,
+            reader.end_time,
+        )
     # the report: page, figures with content
     text = report.read_text()
     for name in ("wavelet.png", "time_history.png", "phase.png", "friction_velocity.png"):

@@ -29,8 +29,14 @@ def test_sources_and_not_given_values() -> None:
 
 
 def test_overrides_keep_what_is_not_given() -> None:
-    config = select_run(1, convention="physical", duration=2.5, contact_area="printed",
-                        band=ConstantBand(3e-7), damping_ratio=0.05)
+    config = select_run(
+        1,
+        convention="physical",
+        duration=2.5,
+        contact_area="printed",
+        band=ConstantBand(3e-7),
+        damping_ratio=0.05,
+    )
     case = load_case(1)
     assert config.rig.convention == "physical" and config.duration == 2.5
     assert config.rig.damping_ratio == 0.05 and config.band == ConstantBand(3e-7)
@@ -71,8 +77,9 @@ def test_stability_honours_case_and_config(capsys: pytest.CaptureFixture[str], t
     rig = RigParameters(natural_frequency=20.0, damping_ratio=0.2, convention="paper")
     assert report["results"][0]["unstable_intervals"] == [list(i) for i in unstable_intervals(0.2, rig)]
     # explicit options still override the selected run
-    report = _json(capsys, "stability", "--config", str(config), "--convention", "physical",
-                   "--zeta", "0.01", "--json")
+    report = _json(
+        capsys, "stability", "--config", str(config), "--convention", "physical", "--zeta", "0.01", "--json"
+    )
     assert report["convention"] == "physical" and report["results"][0]["zeta"] == 0.01
 
 

@@ -46,8 +46,15 @@ def test_writes_csv_equal_to_core_run(case1_dir):
 
 def test_summary_has_contract_keys(case1_dir):
     summary = json.loads((case1_dir / "summary.json").read_text())
-    for key in ("convention", "duration", "x_peak_to_peak", "mu_min", "mu_max", "stick_fraction",
-                "dominant_frequencies_hz"):
+    for key in (
+        "convention",
+        "duration",
+        "x_peak_to_peak",
+        "mu_min",
+        "mu_max",
+        "stick_fraction",
+        "dominant_frequencies_hz",
+    ):
         assert key in summary
     assert summary["convention"] == "paper"
     assert summary["duration"] == 4.0
@@ -91,8 +98,19 @@ def test_profile_csv_and_overrides(tmp_path):
     csv = tmp_path / "band.csv"
     csv.write_text("time_s,band_velocity_m_s\n0,1e-7\n0.5,2e-7\n1,1e-7\n")
     out = tmp_path / "out"
-    res = lubrig("simulate", "--profile", str(csv), "--convention", "paper", "--zeta", "0.05",
-                 "--duration", "1", "--out", str(out))
+    res = lubrig(
+        "simulate",
+        "--profile",
+        str(csv),
+        "--convention",
+        "paper",
+        "--zeta",
+        "0.05",
+        "--duration",
+        "1",
+        "--out",
+        str(out),
+    )
     assert res.returncode == 0, res.stderr
     data = np.loadtxt(out / "timeseries.csv", delimiter=",", skiprows=1)
     assert data[500, 4] == pytest.approx(2e-7)

@@ -27,7 +27,11 @@ def wavelet_frequencies(number: int, start: float = 10.0, n: int = 4, min_relati
     config, trajectory, _ = run_case(number)
     x = trajectory.displacement - trajectory.displacement.mean()
     return dominant_frequencies(
-        x, DT, fundamental_hz=config.band.fundamental_hz, n=n, start=start,
+        x,
+        DT,
+        fundamental_hz=config.band.fundamental_hz,
+        n=n,
+        start=start,
         min_relative_power=min_relative_power,
     )
 
@@ -119,9 +123,7 @@ def test_constant_2e8_gives_stick_slip():
 def test_linear_verdict_matches_simulation_at_constant_band_velocity():
     # zone 3 at 1e-6 m/s is stable: the 1 % perturbation decays in both conventions
     for convention in ("physical", "paper"):
-        config = load_case(1).with_overrides(
-            convention=convention, duration=20.0, band=ConstantBand(1e-6)
-        )
+        config = load_case(1).with_overrides(convention=convention, duration=20.0, band=ConstantBand(1e-6))
         trajectory = simulate(config)
         x = trajectory.displacement
         assert np.ptp(x[-2000:]) < 0.05 * np.ptp(x[:2000])

@@ -12,8 +12,33 @@ from lubrig_ros.core.presets import load_case
 
 #: Statements the presets' reading (paper, γ = 1/ω0) agrees with, measured 2026-12 (27 of 38).
 PRESET_AGREES = {
-    "F1", "F2", "F3", "S1", "S2", "S3", "S4", "C1a", "C1b", "C1c", "C2a", "C2b", "C3b", "C4a",
-    "C4b", "C5a", "C5b", "C6a", "C6c", "C6d", "C7a", "C7b", "C10a", "C10b", "M1", "M2", "M3",
+    "F1",
+    "F2",
+    "F3",
+    "S1",
+    "S2",
+    "S3",
+    "S4",
+    "C1a",
+    "C1b",
+    "C1c",
+    "C2a",
+    "C2b",
+    "C3b",
+    "C4a",
+    "C4b",
+    "C5a",
+    "C5b",
+    "C6a",
+    "C6c",
+    "C6d",
+    "C7a",
+    "C7b",
+    "C10a",
+    "C10b",
+    "M1",
+    "M2",
+    "M3",
 }
 
 

@@ -28,8 +28,13 @@ TIMING = ("simulate_seconds", "point_seconds", "worker", "started_at", "finished
 
 CYCLE = {
     "rig": {"convention": "paper"},
-    "band": {"kind": "cycle", "low_velocity": 1e-7, "high_velocity": 1e-6, "plateau_time": 0.01,
-             "ramp_time": 0.2},
+    "band": {
+        "kind": "cycle",
+        "low_velocity": 1e-7,
+        "high_velocity": 1e-6,
+        "plateau_time": 0.01,
+        "ramp_time": 0.2,
+    },
 }
 
 
@@ -59,20 +64,26 @@ def test_points_equal_direct_core_runs(tmp_path):
     assert [r["index"] for r in rows] == [0, 1, 2, 3]
     for row in rows:
         # the same run built independently of the sweep code: the study rig, the values set by hand
-        config = from_mapping({
-            "rig": {"convention": "paper", "damping_ratio": row["rig.damping_ratio"],
-                    "friction": {"contact_area": row["rig.friction.contact_area"]}},
-            "band": {**CYCLE["band"], "ramp_time": row["band.ramp_time"]},
-            "simulation": {"duration": 1.0},
-        })
+        config = from_mapping(
+            {
+                "rig": {
+                    "convention": "paper",
+                    "damping_ratio": row["rig.damping_ratio"],
+                    "friction": {"contact_area": row["rig.friction.contact_area"]},
+                },
+                "band": {**CYCLE["band"], "ramp_time": row["band.ramp_time"]},
+                "simulation": {"duration": 1.0},
+            }
+        )
         trajectory = simulate(config)
         summary = summarize(trajectory, config)
         for key in SUMMARY_KEYS:
             assert row[key] == summary[key], key
         assert row["mu_range"] == summary["mu_max"] - summary["mu_min"]
         # the one wavelet policy (app/analysis.py: second half, rate/4 … 3/window) on the direct run
-        components = analyze_displacement(trajectory.time, trajectory.displacement, 1000.0,
-                                          config.band.fundamental_hz).components[:3]
+        components = analyze_displacement(
+            trajectory.time, trajectory.displacement, 1000.0, config.band.fundamental_hz
+        ).components[:3]
         assert row["wavelet_frequencies_hz"] == [c.frequency_hz for c in components]
         assert row["frequency_ratio"] == components[0].frequency_hz / summary["band_fundamental_hz"]
         assert row["status"] == "ok" and row["error"] is None
@@ -81,10 +92,26 @@ def test_points_equal_direct_core_runs(tmp_path):
     row = rows[-1]
     run_dir = tmp_path / "simulate"
     subprocess.run(
-        [str(LUBRIG), "simulate", "--cycle", "1e-7", "1e-6", "0.01", repr(row["band.ramp_time"]),
-         "--convention", "paper", "--zeta", repr(row["rig.damping_ratio"]), "--duration", "1",
-         "--out", str(run_dir)],
-        check=True, capture_output=True, timeout=120,
+        [
+            str(LUBRIG),
+            "simulate",
+            "--cycle",
+            "1e-7",
+            "1e-6",
+            "0.01",
+            repr(row["band.ramp_time"]),
+            "--convention",
+            "paper",
+            "--zeta",
+            repr(row["rig.damping_ratio"]),
+            "--duration",
+            "1",
+            "--out",
+            str(run_dir),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=120,
     )
     summary = json.loads((run_dir / "summary.json").read_text())
     for key in SUMMARY_KEYS:
@@ -95,8 +122,14 @@ def test_shipped_sweeps_hold_the_study_cases():
     spec = load_spec(ROOT / "config/sweeps/ramp_plateau.yaml")
     assert len(spec.points) == 42
     configs = {(p.values["band.ramp_time"], p.values["band.plateau_time"]): p.config for p in spec.points}
-    for case, key in {4: (0.2, 0.01), 5: (0.2, 0.1), 6: (0.2, 1.0), 7: (0.02, 0.08), 8: (0.01, 0.04),
-                      10: (0.02, 0.01)}.items():
+    for case, key in {
+        4: (0.2, 0.01),
+        5: (0.2, 0.1),
+        6: (0.2, 1.0),
+        7: (0.02, 0.08),
+        8: (0.01, 0.04),
+        10: (0.02, 0.01),
+    }.items():
         expected = load_case(case).to_dict()
         expected.pop("lubrig_ros_version")
         got = dict(configs[key])
@@ -112,15 +145,19 @@ def test_shipped_sweeps_hold_the_study_cases():
 
 @pytest.mark.slow
 def test_kill_mid_sweep_then_resume_computes_each_point_once(tmp_path):
-    spec_path = write_spec(tmp_path / "spec.yaml", {
-        "name": "killme",
-        "base": {**CYCLE, "simulation": {"duration": 10.0}},
-        "axes": [{"parameter": "band.plateau_time", "linspace": {"start": 0.01, "stop": 0.5, "num": 12}}],
-    })
+    spec_path = write_spec(
+        tmp_path / "spec.yaml",
+        {
+            "name": "killme",
+            "base": {**CYCLE, "simulation": {"duration": 10.0}},
+            "axes": [{"parameter": "band.plateau_time", "linspace": {"start": 0.01, "stop": 0.5, "num": 12}}],
+        },
+    )
     out = tmp_path / "out"
     command = [str(LUBRIG), "sweep", str(spec_path), "--out", str(out), "--workers", "1", "--no-figures"]
-    proc = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        command, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     try:
         deadline = time.monotonic() + 120
         while len(list((out / "points").glob("*.json"))) < 3:
@@ -158,19 +195,23 @@ def test_kill_mid_sweep_then_resume_computes_each_point_once(tmp_path):
     assert len(first - resumed_ids) == 0 and len(resumed_ids - first) <= 1
     assert [e["resumed"] for e in journal if e["event"] == "start"] == [0, len(before)]
 
-    reference = run_sweep(load_spec(spec_path), tmp_path / "ref", scheduler="serial", progress=None,
-                          figures=False)
+    reference = run_sweep(
+        load_spec(spec_path), tmp_path / "ref", scheduler="serial", progress=None, figures=False
+    )
     table, expected = pq.read_table(out / "results.parquet"), pq.read_table(reference.table)
     assert comparable(table).equals(comparable(expected))
     assert table.schema.metadata[b"lubrig_sweep_spec"] == expected.schema.metadata[b"lubrig_sweep_spec"]
 
 
 def test_failed_point_is_recorded_and_does_not_stop_the_others(tmp_path, capsys):
-    spec_path = write_spec(tmp_path / "spec.yaml", {
-        "name": "fails",
-        "base": {"band": {"kind": "constant", "velocity": 1e-7}, "simulation": {"duration": 1.0}},
-        "axes": [{"parameter": "band.velocity", "values": [1e-7, 0.0, 2e-7]}],
-    })
+    spec_path = write_spec(
+        tmp_path / "spec.yaml",
+        {
+            "name": "fails",
+            "base": {"band": {"kind": "constant", "velocity": 1e-7}, "simulation": {"duration": 1.0}},
+            "axes": [{"parameter": "band.velocity", "values": [1e-7, 0.0, 2e-7]}],
+        },
+    )
     out = tmp_path / "out"
     assert main(["sweep", str(spec_path), "--out", str(out), "--scheduler", "serial"]) == 0
     rows = pq.read_table(out / "results.parquet").to_pylist()
@@ -191,14 +232,18 @@ BAD_SPECS = {
     "unknown parameter": ({"parameter": "rig.dampin_ratio", "values": [0.1]}, "rig.dampin_ratio"),
     "unknown band parameter": ({"parameter": "band.velocity", "values": [1e-7]}, "band.velocity"),
     "empty values": ({"parameter": "band.ramp_time", "values": []}, "values=[]"),
-    "empty linspace": ({"parameter": "band.ramp_time", "linspace": {"start": 0.1, "stop": 0.2, "num": 0}},
-                       "num=0"),
+    "empty linspace": (
+        {"parameter": "band.ramp_time", "linspace": {"start": 0.1, "stop": 0.2, "num": 0}},
+        "num=0",
+    ),
     "negative damping": (
         {"parameter": "rig.damping_ratio", "linspace": {"start": -0.1, "stop": 0.1, "num": 3}},
         "damping_ratio=-0.1 must be >= 0",
     ),
-    "logspace exponents": ({"parameter": "band.ramp_time", "logspace": {"start": -2, "stop": 0, "num": 3}},
-                           "not exponents"),
+    "logspace exponents": (
+        {"parameter": "band.ramp_time", "logspace": {"start": -2, "stop": 0, "num": 3}},
+        "not exponents",
+    ),
 }
 
 
@@ -223,8 +268,13 @@ def test_duplicate_axis_and_bad_options_fail_before_any_work(tmp_path, capsys):
     for options, needle in ((["--workers", "0"], "--workers 0"), (["--scheduler", "nowhere"], "'nowhere'")):
         assert main(["sweep", str(good), "--out", str(out), *options]) == 2
         assert needle in capsys.readouterr().err
-    sampled = {"base": CYCLE, "design": "lhs", "samples": 4, "seed": 1,
-               "axes": [{"parameter": "rig.damping_ratio", "uniform": {"low": 0.1, "high": 0.1}}]}
+    sampled = {
+        "base": CYCLE,
+        "design": "lhs",
+        "samples": 4,
+        "seed": 1,
+        "axes": [{"parameter": "rig.damping_ratio", "uniform": {"low": 0.1, "high": 0.1}}],
+    }
     assert main(["sweep", str(write_spec(tmp_path / "lhs.yaml", sampled)), "--out", str(out)]) == 2
     assert "empty range" in capsys.readouterr().err
     assert not out.exists()
@@ -232,10 +282,12 @@ def test_duplicate_axis_and_bad_options_fail_before_any_work(tmp_path, capsys):
 
 def test_directory_of_another_sweep_is_refused(tmp_path, capsys):
     base = {"base": {**CYCLE, "simulation": {"duration": 0.5}}, "wavelet": False}
-    one = write_spec(tmp_path / "one.yaml", {**base, "axes": [{"parameter": "rig.damping_ratio",
-                                                                  "values": [0.01]}]})
-    two = write_spec(tmp_path / "two.yaml", {**base, "axes": [{"parameter": "rig.damping_ratio",
-                                                                  "values": [0.02]}]})
+    one = write_spec(
+        tmp_path / "one.yaml", {**base, "axes": [{"parameter": "rig.damping_ratio", "values": [0.01]}]}
+    )
+    two = write_spec(
+        tmp_path / "two.yaml", {**base, "axes": [{"parameter": "rig.damping_ratio", "values": [0.02]}]}
+    )
     out = tmp_path / "out"
     assert main(["sweep", str(one), "--out", str(out), "--scheduler", "serial", "--no-figures"]) == 0
     listing = sorted(p.name for p in out.rglob("*"))
@@ -243,14 +295,18 @@ def test_directory_of_another_sweep_is_refused(tmp_path, capsys):
     assert "holds a different sweep" in capsys.readouterr().err
     assert sorted(p.name for p in out.rglob("*")) == listing
     # the stored spec is the sweep: rerunning it from DIR resumes, it does not recompute
-    assert main(["sweep", str(out / "spec.yaml"), "--out", str(out), "--scheduler", "serial",
-                 "--no-figures"]) == 0
+    assert (
+        main(["sweep", str(out / "spec.yaml"), "--out", str(out), "--scheduler", "serial", "--no-figures"])
+        == 0
+    )
     assert "(1 resumed, 0 computed" in capsys.readouterr().out
 
 
 def test_latin_hypercube_and_random_designs(tmp_path):
-    axes = [{"parameter": "rig.damping_ratio", "uniform": {"low": 0.0, "high": 0.2}},
-            {"parameter": "band.ramp_time", "loguniform": {"low": 0.01, "high": 1.0}}]
+    axes = [
+        {"parameter": "rig.damping_ratio", "uniform": {"low": 0.0, "high": 0.2}},
+        {"parameter": "band.ramp_time", "loguniform": {"low": 0.01, "high": 1.0}},
+    ]
     lhs = {"base": CYCLE, "design": "lhs", "samples": 8, "seed": 3, "axes": axes}
     points = parse_spec(lhs).points
     zeta = np.array([p.values["rig.damping_ratio"] for p in points])
@@ -277,8 +333,13 @@ def test_progress_reports_time_left(tmp_path):
     import io
 
     stream = io.StringIO()
-    spec = parse_spec({"base": {**CYCLE, "simulation": {"duration": 0.5}}, "wavelet": False,
-                       "axes": [{"parameter": "rig.damping_ratio", "values": [0.01, 0.02, 0.03]}]})
+    spec = parse_spec(
+        {
+            "base": {**CYCLE, "simulation": {"duration": 0.5}},
+            "wavelet": False,
+            "axes": [{"parameter": "rig.damping_ratio", "values": [0.01, 0.02, 0.03]}],
+        }
+    )
     run_sweep(spec, tmp_path / "out", scheduler="serial", progress=stream, figures=False)
     lines = stream.getvalue().splitlines()
     assert lines and lines[-1].startswith("sweep sweep: 3/3 points (0 resumed, 0 failed)")
@@ -286,9 +347,16 @@ def test_progress_reports_time_left(tmp_path):
 
 
 def test_steady_sliding_has_no_dominant_frequency():
-    spec = parse_spec({"base": {"band": {"kind": "constant", "velocity": 1e-6}, "rig": {"damping_ratio": 0.2},
-                                "simulation": {"duration": 20.0}},
-                       "axes": [{"parameter": "band.velocity", "values": [1e-6]}]})
+    spec = parse_spec(
+        {
+            "base": {
+                "band": {"kind": "constant", "velocity": 1e-6},
+                "rig": {"damping_ratio": 0.2},
+                "simulation": {"duration": 20.0},
+            },
+            "axes": [{"parameter": "band.velocity", "values": [1e-6]}],
+        }
+    )
     from lubrig_ros.sweep import run_point
 
     record = run_point(spec.points[0])
@@ -297,18 +365,29 @@ def test_steady_sliding_has_no_dominant_frequency():
     assert "constant in the window" in record["wavelet_error"] and record["linear_stable"] is True
 
 
-@pytest.mark.parametrize("extra", [[], [{"parameter": "band.ramp_time", "values": [0.2]}]],
-                         ids=["grid map", "scatter over more axes"])
+@pytest.mark.parametrize(
+    "extra",
+    [[], [{"parameter": "band.ramp_time", "values": [0.2]}]],
+    ids=["grid map", "scatter over more axes"],
+)
 def test_text_axis_maps_to_ticks(tmp_path, capsys, extra):
     """A text-valued axis (rig.convention) in a 2-axis grid or scatter: its values become ticks."""
-    spec_path = write_spec(tmp_path / "spec.yaml", {
-        "base": {**CYCLE, "simulation": {"duration": 0.5}}, "wavelet": False,
-        "axes": [{"parameter": "rig.convention", "values": ["physical", "paper"]},
-                 {"parameter": "rig.damping_ratio", "values": [0.01, 0.1]}, *extra],
-    })
+    spec_path = write_spec(
+        tmp_path / "spec.yaml",
+        {
+            "base": {**CYCLE, "simulation": {"duration": 0.5}},
+            "wavelet": False,
+            "axes": [
+                {"parameter": "rig.convention", "values": ["physical", "paper"]},
+                {"parameter": "rig.damping_ratio", "values": [0.01, 0.1]},
+                *extra,
+            ],
+        },
+    )
     out = tmp_path / "out"
-    assert main(["sweep", str(spec_path), "--out", str(out), "--scheduler", "serial"]) == 0, \
+    assert main(["sweep", str(spec_path), "--out", str(out), "--scheduler", "serial"]) == 0, (
         capsys.readouterr().err
+    )
     for name in ("amplitude", "mu_range", "stick_fraction", "frequency", "linear"):
         assert (out / f"map_{name}.png").read_bytes()[:4] == b"\x89PNG"
     from lubrig_ros.figures.sweep import map_figure
@@ -321,18 +400,27 @@ def test_text_axis_maps_to_ticks(tmp_path, capsys, extra):
     assert ax.get_xlabel() == "rig.convention"
 
 
-@pytest.mark.parametrize(("band", "linear_velocity"), [
-    ({"kind": "table", "times": [0.0, 0.2, 1.0], "velocities": [0.0, 2e-7, 1e-6]}, 2e-7),
-    ({"kind": "table", "times": [0.0, 1.0], "velocities": [0.0, 0.0]}, None),
-    ({"kind": "sine", "mean_velocity": 0.0, "amplitude": 1e-6, "frequency": 2.0}, None),
-], ids=["table from rest", "table at rest", "sine mean 0"])
+@pytest.mark.parametrize(
+    ("band", "linear_velocity"),
+    [
+        ({"kind": "table", "times": [0.0, 0.2, 1.0], "velocities": [0.0, 2e-7, 1e-6]}, 2e-7),
+        ({"kind": "table", "times": [0.0, 1.0], "velocities": [0.0, 0.0]}, None),
+        ({"kind": "sine", "mean_velocity": 0.0, "amplitude": 1e-6, "frequency": 2.0}, None),
+    ],
+    ids=["table from rest", "table at rest", "sine mean 0"],
+)
 def test_band_from_rest_keeps_the_point(band, linear_velocity):
     """A table starting from rest (or a sine with mean ≤ 0) is judged at its lowest velocity > 0,
     or has null linear columns: the point, whose simulation succeeded, is not an error."""
     from lubrig_ros.sweep import run_point
 
-    spec = parse_spec({"base": {"band": band, "simulation": {"duration": 1.0}}, "wavelet": False,
-                       "axes": [{"parameter": "rig.damping_ratio", "values": [0.05]}]})
+    spec = parse_spec(
+        {
+            "base": {"band": band, "simulation": {"duration": 1.0}},
+            "wavelet": False,
+            "axes": [{"parameter": "rig.damping_ratio", "values": [0.05]}],
+        }
+    )
     record = run_point(spec.points[0])
     assert record["status"] == "ok", record["error"]
     assert record["x_peak_to_peak"] is not None

@@ -28,8 +28,13 @@ TIMING = ("simulate_seconds", "point_seconds", "worker", "started_at", "finished
 KEY_PREFIX = "lubrig-sweep-"
 CYCLE = {
     "rig": {"convention": "paper"},
-    "band": {"kind": "cycle", "low_velocity": 1e-7, "high_velocity": 1e-6, "plateau_time": 0.01,
-             "ramp_time": 0.2},
+    "band": {
+        "kind": "cycle",
+        "low_velocity": 1e-7,
+        "high_velocity": 1e-6,
+        "plateau_time": 0.01,
+        "ramp_time": 0.2,
+    },
 }
 
 
@@ -49,8 +54,9 @@ def assert_same_table(got, expected):
         for key in ra
         if ra[key] != rb.get(key)
     ]
-    raise AssertionError(f"{len(rows_a)} vs {len(rows_b)} rows; differing (index, column, got, expected): "
-                         f"{diffs[:12]}")
+    raise AssertionError(
+        f"{len(rows_a)} vs {len(rows_b)} rows; differing (index, column, got, expected): {diffs[:12]}"
+    )
 
 
 def wait_for(condition, timeout, what, alive=()):
@@ -81,24 +87,62 @@ def dask_cluster(tmp_path, n_workers, scheduler_env=None):
     client = None
     try:
         scheduler = subprocess.Popen(
-            [str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-             "--scheduler-file", str(scheduler_file), "--idle-timeout", "300"],
-            cwd=tmp_path, env={**os.environ, **(scheduler_env or {})}, stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL)
+            [
+                str(DASK),
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                "0",
+                "--no-dashboard",
+                "--scheduler-file",
+                str(scheduler_file),
+                "--idle-timeout",
+                "300",
+            ],
+            cwd=tmp_path,
+            env={**os.environ, **(scheduler_env or {})},
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         procs.append(scheduler)
         # the file is written once the scheduler listens (then read whole: it is small)
-        wait_for(lambda: scheduler_file.exists() and scheduler_file.stat().st_size > 0, 60,
-                 "scheduler file", [scheduler])
+        wait_for(
+            lambda: scheduler_file.exists() and scheduler_file.stat().st_size > 0,
+            60,
+            "scheduler file",
+            [scheduler],
+        )
         wait_for(lambda: "address" in scheduler_file.read_text(), 10, "scheduler address", [scheduler])
         address = json.loads(scheduler_file.read_text())["address"]
         assert address.startswith("tcp://127.0.0.1:")
         workers = []
         for i in range(n_workers):
-            workers.append(subprocess.Popen(
-                [str(DASK), "worker", "--scheduler-file", str(scheduler_file), "--host", "127.0.0.1",
-                 "--nworkers", "1", "--nthreads", "1", "--no-nanny", "--no-dashboard",
-                 "--death-timeout", "60", "--local-directory", str(tmp_path / f"worker{i}")],
-                cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+            workers.append(
+                subprocess.Popen(
+                    [
+                        str(DASK),
+                        "worker",
+                        "--scheduler-file",
+                        str(scheduler_file),
+                        "--host",
+                        "127.0.0.1",
+                        "--nworkers",
+                        "1",
+                        "--nthreads",
+                        "1",
+                        "--no-nanny",
+                        "--no-dashboard",
+                        "--death-timeout",
+                        "60",
+                        "--local-directory",
+                        str(tmp_path / f"worker{i}"),
+                    ],
+                    cwd=tmp_path,
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                )
+            )
         procs.extend(workers)
         client = Client(address, timeout="30s")
         if n_workers:
@@ -120,17 +164,24 @@ def pid_of(row):
 
 def sweep_spec(tmp_path, name, duration, num):
     path = tmp_path / f"{name}.yaml"
-    path.write_text(yaml.safe_dump({
-        "name": name,
-        "base": {**CYCLE, "simulation": {"duration": duration}},
-        "axes": [{"parameter": "band.plateau_time", "linspace": {"start": 0.01, "stop": 0.5, "num": num}}],
-    }))
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "name": name,
+                "base": {**CYCLE, "simulation": {"duration": duration}},
+                "axes": [
+                    {"parameter": "band.plateau_time", "linspace": {"start": 0.01, "stop": 0.5, "num": num}}
+                ],
+            }
+        )
+    )
     return path
 
 
 def serial_table(spec_path, out):
-    return pq.read_table(run_sweep(load_spec(spec_path), out, scheduler="serial", progress=None,
-                                   figures=False).table)
+    return pq.read_table(
+        run_sweep(load_spec(spec_path), out, scheduler="serial", progress=None, figures=False).table
+    )
 
 
 def test_remote_scheduler_sweep_equals_serial(tmp_path):
@@ -138,14 +189,29 @@ def test_remote_scheduler_sweep_equals_serial(tmp_path):
     out = tmp_path / "cluster"
     with dask_cluster(tmp_path, 2) as (address, client, workers):
         run = subprocess.run(
-            [str(LUBRIG), "sweep", str(spec_path), "--out", str(out), "--scheduler", address,
-             "--no-figures", "--quiet"],
-            capture_output=True, text=True, timeout=120)
+            [
+                str(LUBRIG),
+                "sweep",
+                str(spec_path),
+                "--out",
+                str(out),
+                "--scheduler",
+                address,
+                "--no-figures",
+                "--quiet",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert run.returncode == 0, run.stderr
         assert "(0 resumed, 4 computed, 0 failed)" in run.stdout
         # the driver released its results: nothing of the sweep is left on the cluster
-        assert not [k for k in client.run_on_scheduler(lambda dask_scheduler: list(dask_scheduler.tasks))
-                    if str(k).startswith(KEY_PREFIX)]
+        assert not [
+            k
+            for k in client.run_on_scheduler(lambda dask_scheduler: list(dask_scheduler.tasks))
+            if str(k).startswith(KEY_PREFIX)
+        ]
         assert all(proc.poll() is None for proc in workers.values())
     table = pq.read_table(out / "results.parquet")
     rows = table.to_pylist()
@@ -175,16 +241,29 @@ def kill_a_busy_worker(client, out, sweep):
         return False
 
     wait_for(a_worker_is_busy, 120, "a point running on a worker", [sweep])
-    (address, keys), = running.items()
+    ((address, keys),) = running.items()
     os.kill(address_pid[address], signal.SIGKILL)
     return address_pid[address], keys, len(list((out / "points").glob("*.json")))
 
 
 def start_sweep(spec_path, out, address, *options):
     return subprocess.Popen(
-        [str(LUBRIG), "sweep", str(spec_path), "--out", str(out), "--scheduler", address, "--no-figures",
-         "--quiet", *options],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        [
+            str(LUBRIG),
+            "sweep",
+            str(spec_path),
+            "--out",
+            str(out),
+            "--scheduler",
+            address,
+            "--no-figures",
+            "--quiet",
+            *options,
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def test_worker_killed_mid_sweep_points_rescheduled_each_once(tmp_path):
@@ -200,7 +279,7 @@ def test_worker_killed_mid_sweep_points_rescheduled_each_once(tmp_path):
             stop(sweep)
         assert workers[victim].returncode == -signal.SIGKILL
         assert sweep.returncode == 0, stderr
-        survivor, = set(workers) - {victim}
+        (survivor,) = set(workers) - {victim}
         assert workers[survivor].poll() is None
     assert done_at_kill < 12, "the sweep ended before the worker was killed"
     # Dask moved the dead worker's tasks to the other one (allowed-failures 3 by default)
@@ -210,7 +289,7 @@ def test_worker_killed_mid_sweep_points_rescheduled_each_once(tmp_path):
     assert {r["status"] for r in rows} == {"ok"}
     by_id = {r["point_id"]: r for r in rows}
     # the points the dead worker held were computed again by the surviving one
-    lost = [by_id[key[len(KEY_PREFIX):]] for key in victim_keys]
+    lost = [by_id[key[len(KEY_PREFIX) :]] for key in victim_keys]
     assert any(pid_of(r) == survivor for r in lost), [r["worker"] for r in lost]
     assert {pid_of(r) for r in rows} <= {victim, survivor}
     journal = [json.loads(line) for line in (out / "journal.jsonl").read_text().splitlines()]
@@ -243,14 +322,27 @@ def test_killed_worker_error_is_recorded_then_retried(tmp_path):
             assert row["status"] == "error" and row["error"].startswith("KilledWorker: "), row["error"]
             assert row["x_peak_to_peak"] is None
         # the failures are the dead worker's: the point it was running is among them
-        assert {r["point_id"] for r in failed} & {k[len(KEY_PREFIX):] for k in victim_keys}
+        assert {r["point_id"] for r in failed} & {k[len(KEY_PREFIX) :] for k in victim_keys}
         retry = subprocess.run(
-            [str(LUBRIG), "sweep", str(spec_path), "--out", str(out), "--scheduler", address,
-             "--no-figures", "--quiet", "--retry-failed"],
-            capture_output=True, text=True, timeout=120)
+            [
+                str(LUBRIG),
+                "sweep",
+                str(spec_path),
+                "--out",
+                str(out),
+                "--scheduler",
+                address,
+                "--no-figures",
+                "--quiet",
+                "--retry-failed",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert retry.returncode == 0, retry.stderr
         assert f"({8 - len(failed)} resumed, {len(failed)} computed, 0 failed)" in retry.stdout
-        survivor, = set(workers) - {victim}
+        (survivor,) = set(workers) - {victim}
     table = pq.read_table(out / "results.parquet")
     retried = {r["point_id"]: r for r in table.to_pylist()}
     assert all(pid_of(retried[r["point_id"]]) == survivor for r in failed)
@@ -262,9 +354,23 @@ def test_scheduler_without_workers_fails_in_one_line(tmp_path):
     spec_path = sweep_spec(tmp_path, "lonely", 1.0, 2)
     with dask_cluster(tmp_path, 0) as (address, _client, _workers):
         run = subprocess.run(
-            [str(LUBRIG), "sweep", str(spec_path), "--out", str(tmp_path / "out"), "--scheduler", address,
-             "--worker-timeout", "3", "--no-figures", "--quiet"],
-            capture_output=True, text=True, timeout=60)
+            [
+                str(LUBRIG),
+                "sweep",
+                str(spec_path),
+                "--out",
+                str(tmp_path / "out"),
+                "--scheduler",
+                address,
+                "--worker-timeout",
+                "3",
+                "--no-figures",
+                "--quiet",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
     assert run.returncode == 2
     lines = run.stderr.strip().splitlines()
     assert len(lines) == 1 and f"no Dask worker joined {address} within 3 s" in lines[0], run.stderr

@@ -35,7 +35,10 @@ def test_a_hung_teardown_ends_the_process_with_the_node_status() -> None:
     for status in (0, 3):
         done = subprocess.run(
             [sys.executable, "-c", BLOCKED_TEARDOWN.format(status=status)],
-            capture_output=True, text=True, timeout=60, check=False,
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
         )
         assert done.returncode == status
         assert done.stdout == "work done\n"
@@ -56,8 +59,9 @@ def test_a_teardown_that_finishes_is_not_touched() -> None:
         print("exited normally", flush=True)
         """
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
-                          check=False)
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False
+    )
     assert (done.returncode, done.stdout, done.stderr) == (0, "exited normally\n", "")
 
 

@@ -114,9 +114,7 @@ def test_matches_pywavelets_cmor_within_tolerance():
     x = rng.standard_normal(4096) + 3 * tone(25.0, n=4096)
     res = cwt(x, DT, fmin=4.0, fmax=60.0, keep_coefficients=True)
     wav = pywt.ContinuousWavelet(f"cmor2.0-{6 / (2 * np.pi)}")
-    coef, _ = pywt.cwt(
-        x - x.mean(), res.scales / DT, wav, sampling_period=DT, method="fft", precision=18
-    )
+    coef, _ = pywt.cwt(x - x.mean(), res.scales / DT, wav, sampling_period=DT, method="fft", precision=18)
     p_pywt = np.abs(coef) ** 2 * 2 * np.sqrt(np.pi) / res.variance
     m = res.outside_coi
     scale_mean = res.power.mean(axis=1, keepdims=True)

@@ -77,7 +77,9 @@ def test_significance_and_global_spectrum_equal_pycwt(both) -> None:
     local, _ = pycwt.significance(variance, DT, sj, 0, alpha=ours.lag1, wavelet=pycwt.Morlet(6))
     np.testing.assert_allclose(ours.significance * variance, local, rtol=1e-9)
     dof = np.full(sj.size, float(N))  # every time point of the series averaged
-    global_level, _ = pycwt.significance(variance, DT, sj, 1, alpha=ours.lag1, dof=dof, wavelet=pycwt.Morlet(6))
+    global_level, _ = pycwt.significance(
+        variance, DT, sj, 1, alpha=ours.lag1, dof=dof, wavelet=pycwt.Morlet(6)
+    )
     np.testing.assert_allclose(ours.global_significance * variance, global_level, rtol=1e-9)
     spectrum = (np.abs(w) ** 2).mean(axis=1) / variance
     clear = np.exp(-0.5 * (ours.scales * math.pi / DT - 6.0) ** 2) < 1e-6  # as for the power

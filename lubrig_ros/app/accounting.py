@@ -28,6 +28,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from lubrig_ros.core.errors import InputError
+
 
 @dataclass(frozen=True)
 class Gap:
@@ -82,8 +84,15 @@ class StreamAccount:
     newest_segment: int = -1
     skipped: int = 0
 
-    def add(self, segment: int, first_index: int, count: int, stamp_ns: int,
-            period_ns: float | None = None, skipped: int = 0) -> None:
+    def add(
+        self,
+        segment: int,
+        first_index: int,
+        count: int,
+        stamp_ns: int,
+        period_ns: float | None = None,
+        skipped: int = 0,
+    ) -> None:
         """Samples first_index .. first_index + count - 1 of `segment`, the first at rig time stamp_ns.
 
         period_ns: rig time between the samples of a block (None for one sample per message).
@@ -91,7 +100,7 @@ class StreamAccount:
         ValueError for a negative segment, index or count.
         """
         if segment < 0 or first_index < 0 or count < 0 or skipped < 0:
-            raise ValueError(
+            raise InputError(
                 f"{self.name}: segment {segment}, first index {first_index}, count {count}: "
                 "expected integers >= 0"
             )
@@ -229,8 +238,12 @@ class StreamAccount:
             "out_of_order": self.out_of_order,
             "skipped": self.skipped,
             "declared_gaps": [
-                {"segment": g.segment, "first_index": g.first_index, "count": g.count,
-                 "rig_time_s": g.rig_time_ns / 1e9}
+                {
+                    "segment": g.segment,
+                    "first_index": g.first_index,
+                    "count": g.count,
+                    "rig_time_s": g.rig_time_ns / 1e9,
+                }
                 for g in self.declared_gaps
             ],
             "segments": {
@@ -238,8 +251,12 @@ class StreamAccount:
                 for n, s in sorted(self.segments.items())
             },
             "gaps": [
-                {"segment": g.segment, "first_index": g.first_index, "count": g.count,
-                 "rig_time_s": g.rig_time_ns / 1e9}
+                {
+                    "segment": g.segment,
+                    "first_index": g.first_index,
+                    "count": g.count,
+                    "rig_time_s": g.rig_time_ns / 1e9,
+                }
                 for g in self.gaps
             ],
             "first_duplicate": _event(self.first_duplicate),
@@ -251,9 +268,11 @@ class StreamAccount:
     def _fill(self, seg: _Segment, index: int) -> bool:
         for i, (start, stop, t_start, step) in enumerate(seg.missing):
             if start <= index < stop:
-                pieces = [[start, index, t_start, step],
-                          [index + 1, stop, t_start + (index + 1 - start) * step, step]]
-                seg.missing[i:i + 1] = [p for p in pieces if p[1] > p[0]]
+                pieces = [
+                    [start, index, t_start, step],
+                    [index + 1, stop, t_start + (index + 1 - start) * step, step],
+                ]
+                seg.missing[i : i + 1] = [p for p in pieces if p[1] > p[0]]
                 return True
         return False
 

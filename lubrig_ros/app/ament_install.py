@@ -154,10 +154,15 @@ def main(argv: list[str] | None = None) -> int:
         description="Register lubrig_ros in an ament prefix (share/, lib/lubrig_ros) as a colcon "
         "ament_python build with --symlink-install does.",
     )
-    parser.add_argument("--prefix", type=Path, default=Path(sys.prefix),
-                        help="the ament prefix (default: this interpreter's prefix, the venv)")
-    parser.add_argument("--source", type=Path, default=Path.cwd(),
-                        help="the folder of setup.py (default: the current folder)")
+    parser.add_argument(
+        "--prefix",
+        type=Path,
+        default=Path(sys.prefix),
+        help="the ament prefix (default: this interpreter's prefix, the venv)",
+    )
+    parser.add_argument(
+        "--source", type=Path, default=Path.cwd(), help="the folder of setup.py (default: the current folder)"
+    )
     parser.add_argument("--check", action="store_true", help="change nothing; exit 1 if not current")
     args = parser.parse_args(argv)
     prefix = args.prefix.absolute()
@@ -172,8 +177,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"ament index: error: {exc}", file=sys.stderr)
         return 1
     if changed:
-        print(f"ament index: {PACKAGE} registered in {prefix} ({len(changed)} entries changed; "
-              f"ros2 run / ros2 launch with AMENT_PREFIX_PATH={prefix})")
+        print(
+            f"ament index: {PACKAGE} registered in {prefix} ({len(changed)} entries changed; "
+            f"ros2 run / ros2 launch with AMENT_PREFIX_PATH={prefix})"
+        )
     return 0
 
 

@@ -13,6 +13,8 @@ import math
 import struct
 from dataclasses import dataclass
 
+from lubrig_ros.core.errors import InputError
+
 _F64 = {1: struct.Struct("<d"), 0: struct.Struct(">d")}
 _STAMP = {1: struct.Struct("<iI"), 0: struct.Struct(">iI")}
 
@@ -33,9 +35,9 @@ def leading_stamp_ns(data: bytes) -> int:
     ValueError when the payload is too short or the encapsulation is unknown.
     """
     if len(data) < 12:
-        raise ValueError(f"payload of {len(data)} bytes is too short for a time stamp")
+        raise InputError(f"payload of {len(data)} bytes is too short for a time stamp")
     if data[1] not in (0, 1):
-        raise ValueError(f"unknown CDR encapsulation {data[:2].hex()!r}")
+        raise InputError(f"unknown CDR encapsulation {data[:2].hex()!r}")
     sec, nsec = _STAMP[data[1]].unpack_from(data, 4)
     return int(sec) * 1_000_000_000 + int(nsec)
 
@@ -85,7 +87,7 @@ def sample_span(msgtype: str, data: bytes) -> SampleSpan:
     ValueError for another type or a malformed payload (too short, unknown encapsulation).
     """
     if msgtype not in INDEXED_TYPES:
-        raise ValueError(f"message type {msgtype!r} carries no sample index; valid: {INDEXED_TYPES}")
+        raise InputError(f"message type {msgtype!r} carries no sample index; valid: {INDEXED_TYPES}")
     stamp = leading_stamp_ns(data)  # checks length >= 12 and the encapsulation
     endian = data[1]
     u32, u64, f64 = _U32[endian], _U64[endian], _F64[endian]
@@ -103,7 +105,7 @@ def sample_span(msgtype: str, data: bytes) -> SampleSpan:
         (segment,) = u32.unpack_from(data, pos + 16)
         (count,) = u32.unpack_from(data, _align(pos + 20, 4))
     except struct.error as exc:
-        raise ValueError(f"{msgtype} payload of {len(data)} bytes is truncated") from exc
+        raise InputError(f"{msgtype} payload of {len(data)} bytes is truncated") from exc
     skipped = block_skipped(data, pos + 20) if msgtype == INDEXED_TYPES[1] else 0
     return SampleSpan(stamp, int(segment), int(first), int(count), float(period) * 1e9, skipped)
 

@@ -23,6 +23,8 @@ import re
 from dataclasses import dataclass, replace
 from typing import Literal
 
+from lubrig_ros.core.errors import InputError
+
 from ..core.params import ParameterError
 from .node_parameters import ANALYSIS_PARAMETERS as ANALYSIS_PARAMETERS
 from .node_parameters import BAND_VELOCITY_LIMIT as BAND_VELOCITY_LIMIT
@@ -220,75 +222,207 @@ def _t(name: str, msgtype: str, qos: QoS, publisher: str, rate: str, unit: str, 
 
 
 TOPICS: tuple[Topic, ...] = (
-    _t("band_velocity", "std_msgs/msg/Float64", STREAM_QOS, "external rig software (rig_in_loop, lockstep)",
-       OUTPUT_RATE, "m/s", "band velocity v_band, one sample per message"),
-    _t("band_velocity_block", "lubrig_interfaces/msg/BandVelocityBlock", BLOCK_QOS,
-       "belt_drive or external rig software",
-       "sim: output rate / block_length; realtime: one per flow_progress of the plant", "m/s",
-       "consecutive band velocity samples v_band with the sample index of the first (belt_drive: "
-       "sim paced by flow_progress, realtime sent lookahead samples ahead)"),
-    _t("state", "lubrig_interfaces/msg/RigState", STREAM_QOS,
-       "plant (lockstep, realtime, rig_in_loop; state_per_sample)",
-       OUTPUT_RATE, "SI", "one output sample of the rig: x, ẋ, μ, friction force, v_band, v_rel, "
-       "belt travel, sample_index, segment"),
-    _t("state_block", "lubrig_interfaces/msg/RigStateBlock", BLOCK_QOS, "plant (every mode)",
-       "sim, lockstep: one per band block; realtime, rig_in_loop: output rate / output_block_length",
-       "SI", "consecutive output samples of the rig (fields of state); realtime: each sample's "
-       "lateness and the samples skipped behind real time"),
-    _t("flow_progress", "lubrig_interfaces/msg/FlowProgress", BLOCK_QOS,
-       "plant (every mode), recorder, required consumers", "one per block taken", "1",
-       "samples of the current segment a participant has taken; belt_drive paces on the slowest"),
-    _t("displacement", "std_msgs/msg/Float64", STREAM_QOS, "plant (scalar_topics true)", OUTPUT_RATE,
-       "m", "displacement x of the mass (optional, for simple tools)"),
-    _t("velocity", "std_msgs/msg/Float64", STREAM_QOS, "plant (scalar_topics true)", OUTPUT_RATE,
-       "m/s", "velocity ẋ of the mass (optional, for simple tools)"),
-    _t("friction_coefficient", "std_msgs/msg/Float64", STREAM_QOS, "plant (scalar_topics true)",
-       OUTPUT_RATE, "1", "friction coefficient μ(v_rel) (optional, for simple tools)"),
-    _t("/clock", "rosgraph_msgs/msg/Clock", STREAM_QOS, "plant (sim mode, publish_clock true: one owner)",
-       "one per block + 5 Hz heartbeat", "s", "rig time"),
-    _t("run_config", "std_msgs/msg/String", LATCHED_QOS, "plant", "once, latched", "YAML",
-       "the full run configuration (in a bag: the launcher's run_config.yaml)"),
-    _t("run_complete", "std_msgs/msg/Bool", LATCHED_QOS, "plant", "on change, latched", "1",
-       "false at start and after a reset, true once a sim run reaches its duration"),
-    _t("dominant_frequency", "std_msgs/msg/Float64", ANALYSIS_QOS, "analysis",
-       "1 / publish_period (5 Hz)", "Hz", "strongest wavelet component"),
-    _t("wavelet_power", "std_msgs/msg/Float64MultiArray", ANALYSIS_QOS, "analysis",
-       "1 / publish_period", "1",
-       'newest ≤ max_columns columns of normalized power |W|²/σ², dims ["frequency", "time"] '
-       "(row-major)"),
-    _t("wavelet_image", "sensor_msgs/msg/Image", ANALYSIS_QOS, "analysis", "1 / publish_period",
-       "rgb8", "n_scales × image_width, log power over 4 decades, high frequency on top"),
-    _t("wavelet_frame", "lubrig_interfaces/msg/WaveletFrame", ANALYSIS_QOS, "analysis",
-       "1 / publish_period", "1", "wavelet_power with its frequency and time axes"),
-    _t("stability", "lubrig_interfaces/msg/StabilityFlags", ANALYSIS_QOS, "analysis",
-       "1 / publish_period", "SI", "every stability flag with the values it derives from"),
-    _t("linear_zone", "std_msgs/msg/UInt8", ANALYSIS_QOS, "analysis", "1 / publish_period", "1",
-       "friction zone 1, 2 or 3 at the current band velocity"),
-    _t("critical_damping_ratio", "std_msgs/msg/Float64", ANALYSIS_QOS, "analysis",
-       "1 / publish_period", "1", "ζ_crit at the current band velocity"),
-    _t("oscillation_growing", "std_msgs/msg/Bool", ANALYSIS_QOS, "analysis",
-       "1 / publish_period (once the window is full)", "1", "envelope growth flag"),
-    _t("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", ANALYSIS_QOS, "plant, analysis",
-       "plant 1 / diagnostics_period (1 Hz), analysis 1 / publish_period", "key/values",
-       "statuses named `<node FQN>: <group>`: plant `/lubrig/plant: timing`, `… band input`; "
-       "analysis `/lubrig/analysis: linear`, `… oscillation`, `… stick`, `… resonance` "
-       "(values = core.flags fields)"),
+    _t(
+        "band_velocity",
+        "std_msgs/msg/Float64",
+        STREAM_QOS,
+        "external rig software (rig_in_loop, lockstep)",
+        OUTPUT_RATE,
+        "m/s",
+        "band velocity v_band, one sample per message",
+    ),
+    _t(
+        "band_velocity_block",
+        "lubrig_interfaces/msg/BandVelocityBlock",
+        BLOCK_QOS,
+        "belt_drive or external rig software",
+        "sim: output rate / block_length; realtime: one per flow_progress of the plant",
+        "m/s",
+        "consecutive band velocity samples v_band with the sample index of the first (belt_drive: "
+        "sim paced by flow_progress, realtime sent lookahead samples ahead)",
+    ),
+    _t(
+        "state",
+        "lubrig_interfaces/msg/RigState",
+        STREAM_QOS,
+        "plant (lockstep, realtime, rig_in_loop; state_per_sample)",
+        OUTPUT_RATE,
+        "SI",
+        "one output sample of the rig: x, ẋ, μ, friction force, v_band, v_rel, "
+        "belt travel, sample_index, segment",
+    ),
+    _t(
+        "state_block",
+        "lubrig_interfaces/msg/RigStateBlock",
+        BLOCK_QOS,
+        "plant (every mode)",
+        "sim, lockstep: one per band block; realtime, rig_in_loop: output rate / output_block_length",
+        "SI",
+        "consecutive output samples of the rig (fields of state); realtime: each sample's "
+        "lateness and the samples skipped behind real time",
+    ),
+    _t(
+        "flow_progress",
+        "lubrig_interfaces/msg/FlowProgress",
+        BLOCK_QOS,
+        "plant (every mode), recorder, required consumers",
+        "one per block taken",
+        "1",
+        "samples of the current segment a participant has taken; belt_drive paces on the slowest",
+    ),
+    _t(
+        "displacement",
+        "std_msgs/msg/Float64",
+        STREAM_QOS,
+        "plant (scalar_topics true)",
+        OUTPUT_RATE,
+        "m",
+        "displacement x of the mass (optional, for simple tools)",
+    ),
+    _t(
+        "velocity",
+        "std_msgs/msg/Float64",
+        STREAM_QOS,
+        "plant (scalar_topics true)",
+        OUTPUT_RATE,
+        "m/s",
+        "velocity ẋ of the mass (optional, for simple tools)",
+    ),
+    _t(
+        "friction_coefficient",
+        "std_msgs/msg/Float64",
+        STREAM_QOS,
+        "plant (scalar_topics true)",
+        OUTPUT_RATE,
+        "1",
+        "friction coefficient μ(v_rel) (optional, for simple tools)",
+    ),
+    _t(
+        "/clock",
+        "rosgraph_msgs/msg/Clock",
+        STREAM_QOS,
+        "plant (sim mode, publish_clock true: one owner)",
+        "one per block + 5 Hz heartbeat",
+        "s",
+        "rig time",
+    ),
+    _t(
+        "run_config",
+        "std_msgs/msg/String",
+        LATCHED_QOS,
+        "plant",
+        "once, latched",
+        "YAML",
+        "the full run configuration (in a bag: the launcher's run_config.yaml)",
+    ),
+    _t(
+        "run_complete",
+        "std_msgs/msg/Bool",
+        LATCHED_QOS,
+        "plant",
+        "on change, latched",
+        "1",
+        "false at start and after a reset, true once a sim run reaches its duration",
+    ),
+    _t(
+        "dominant_frequency",
+        "std_msgs/msg/Float64",
+        ANALYSIS_QOS,
+        "analysis",
+        "1 / publish_period (5 Hz)",
+        "Hz",
+        "strongest wavelet component",
+    ),
+    _t(
+        "wavelet_power",
+        "std_msgs/msg/Float64MultiArray",
+        ANALYSIS_QOS,
+        "analysis",
+        "1 / publish_period",
+        "1",
+        'newest ≤ max_columns columns of normalized power |W|²/σ², dims ["frequency", "time"] (row-major)',
+    ),
+    _t(
+        "wavelet_image",
+        "sensor_msgs/msg/Image",
+        ANALYSIS_QOS,
+        "analysis",
+        "1 / publish_period",
+        "rgb8",
+        "n_scales × image_width, log power over 4 decades, high frequency on top",
+    ),
+    _t(
+        "wavelet_frame",
+        "lubrig_interfaces/msg/WaveletFrame",
+        ANALYSIS_QOS,
+        "analysis",
+        "1 / publish_period",
+        "1",
+        "wavelet_power with its frequency and time axes",
+    ),
+    _t(
+        "stability",
+        "lubrig_interfaces/msg/StabilityFlags",
+        ANALYSIS_QOS,
+        "analysis",
+        "1 / publish_period",
+        "SI",
+        "every stability flag with the values it derives from",
+    ),
+    _t(
+        "linear_zone",
+        "std_msgs/msg/UInt8",
+        ANALYSIS_QOS,
+        "analysis",
+        "1 / publish_period",
+        "1",
+        "friction zone 1, 2 or 3 at the current band velocity",
+    ),
+    _t(
+        "critical_damping_ratio",
+        "std_msgs/msg/Float64",
+        ANALYSIS_QOS,
+        "analysis",
+        "1 / publish_period",
+        "1",
+        "ζ_crit at the current band velocity",
+    ),
+    _t(
+        "oscillation_growing",
+        "std_msgs/msg/Bool",
+        ANALYSIS_QOS,
+        "analysis",
+        "1 / publish_period (once the window is full)",
+        "1",
+        "envelope growth flag",
+    ),
+    _t(
+        "/diagnostics",
+        "diagnostic_msgs/msg/DiagnosticArray",
+        ANALYSIS_QOS,
+        "plant, analysis",
+        "plant 1 / diagnostics_period (1 Hz), analysis 1 / publish_period",
+        "key/values",
+        "statuses named `<node FQN>: <group>`: plant `/lubrig/plant: timing`, `… band input`; "
+        "analysis `/lubrig/analysis: linear`, `… oscillation`, `… stick`, `… resonance` "
+        "(values = core.flags fields)",
+    ),
 )
 
 SERVICES: tuple[Service, ...] = (
-    Service("plant/reset", "std_srvs/srv/Trigger", "plant",
-            "rig time back to 0 and the initial state in a new segment; pending rig-parameter "
-            "updates applied (sim: /clock and the stamps go on from the old segment's end, never back)"),
-    Service("plant/pause", "std_srvs/srv/SetBool", "plant",
-            "true pauses, false resumes (sim: band samples queue up while paused and are "
-            "integrated on resume)"),
-)
-
-#: The rig's sample streams: the plant's outputs (per sample or per block, scalar topics optional),
-#: its band input (per sample or per block), flow progress and /clock.
-PLANT_TOPICS: tuple[str, ...] = (
-    "state", "state_block", "displacement", "velocity", "friction_coefficient",
-    "band_velocity", "band_velocity_block", "flow_progress", "/clock",
+    Service(
+        "plant/reset",
+        "std_srvs/srv/Trigger",
+        "plant",
+        "rig time back to 0 and the initial state in a new segment; pending rig-parameter "
+        "updates applied (sim: /clock and the stamps go on from the old segment's end, never back)",
+    ),
+    Service(
+        "plant/pause",
+        "std_srvs/srv/SetBool",
+        "plant",
+        "true pauses, false resumes (sim: band samples queue up while paused and are integrated on resume)",
+    ),
 )
 
 _BY_NAME: dict[str, Topic] = {t.name: t for t in TOPICS}
@@ -318,16 +452,14 @@ def documented_topics(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Topic]:
     return {t.name: t for t in resolved}
 
 
-def plant_topics(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Topic]:
-    """The plant's high-rate topics (PLANT_TOPICS) resolved in `namespace`, keyed by absolute name."""
-    resolved = (topic(n).resolved(namespace) for n in PLANT_TOPICS)
-    return {t.name: t for t in resolved}
-
-
 #: One message per sample, beside state_block (which carries the same samples): not recorded
 #: from a wall-clock rig by default (`recorded_topics`); `recorder --topics` can add them.
 PER_SAMPLE_TOPICS: tuple[str, ...] = (
-    "state", "band_velocity", "displacement", "velocity", "friction_coefficient",
+    "state",
+    "band_velocity",
+    "displacement",
+    "velocity",
+    "friction_coefficient",
 )
 
 
@@ -351,23 +483,6 @@ def select_topics(namespace: str, names: list[str] | tuple[str, ...] | None) -> 
     for name in names:
         full = resolve(namespace, name)
         if full not in docs:
-            raise ValueError(f"topic {name!r} is not in the topic contract; valid: {', '.join(sorted(docs))}")
+            raise InputError(f"topic {name!r} is not in the topic contract; valid: {', '.join(sorted(docs))}")
         selected.append(docs[full])
     return selected
-
-
-def flow_window_problem(flow_window: int, block_length: int) -> str | None:
-    """Why this window could lose blocks with this block length, or None.
-
-    Reliable keep_last QoS keeps BLOCK_QOS.depth unacknowledged messages per reader: a window
-    of w samples puts at most ceil(w / block_length) + 1 blocks in flight towards the slowest
-    participant (plus its progress message); keep that below the depth with a margin of 2.
-    """
-    most = (BLOCK_QOS.depth - 2) * block_length
-    if flow_window > most:
-        return (
-            f"flow_window={flow_window} is too large for block_length={block_length}: at most "
-            f"{most} samples ({BLOCK_QOS.depth - 2} blocks, the block topics' QoS depth "
-            f"{BLOCK_QOS.depth} minus 2) may be in flight without a risk of losing a block"
-        )
-    return None

@@ -122,9 +122,7 @@ BLOCKS: dict[str, Callable[[], str]] = {
 DOCUMENTS: dict[str, tuple[str, ...]] = {
     "README.md": ("readme-topics",),
     "docs/topics.md": ("topics", "services"),
-    "docs/nodes.md": (
-        "services", *(f"parameters-{n}" for n in contract.NODE_PARAMETERS), "friction-laws"
-    ),
+    "docs/nodes.md": ("services", *(f"parameters-{n}" for n in contract.NODE_PARAMETERS), "friction-laws"),
 }
 _BLOCK = re.compile(r"(<!-- contract:([a-z_-]+) -->\n)(.*?)(<!-- /contract:\2 -->)", re.S)
 

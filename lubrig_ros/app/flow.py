@@ -31,7 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..core.params import ParameterError
-from .contract import resolve, validate_namespace
+from .contract import BLOCK_QOS, resolve, validate_namespace
 
 
 def qualified_name(namespace: str, name: str) -> str:
@@ -147,3 +147,20 @@ class FlowGate:
             return 0
         limit = max(0, slowest[1] + self.window)
         return limit if total is None else min(limit, total)
+
+
+def flow_window_problem(flow_window: int, block_length: int) -> str | None:
+    """Why this window could lose blocks with this block length, or None.
+
+    Reliable keep_last QoS keeps BLOCK_QOS.depth unacknowledged messages per reader: a window
+    of w samples puts at most ceil(w / block_length) + 1 blocks in flight towards the slowest
+    participant (plus its progress message); keep that below the depth with a margin of 2.
+    """
+    most = (BLOCK_QOS.depth - 2) * block_length
+    if flow_window > most:
+        return (
+            f"flow_window={flow_window} is too large for block_length={block_length}: at most "
+            f"{most} samples ({BLOCK_QOS.depth - 2} blocks, the block topics' QoS depth "
+            f"{BLOCK_QOS.depth} minus 2) may be in flight without a risk of losing a block"
+        )
+    return None

@@ -37,7 +37,11 @@ STABILITY_STATES: tuple[tuple[str, str], ...] = (
 )
 #: Numbers of <ns>/stability plotted (PlotJuggler) beside the flags.
 STABILITY_VALUES: tuple[str, ...] = (
-    "critical_damping_ratio", "damping_ratio", "effective_damping", "growth_rate", "stick_share",
+    "critical_damping_ratio",
+    "damping_ratio",
+    "effective_damping",
+    "growth_rate",
+    "stick_share",
 )
 COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd")
 
@@ -71,8 +75,13 @@ def foxglove_layout(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Any]:
         panels[pid] = {
             "foxglovePanelTitle": f"{title} ({unit})",
             "paths": [
-                {"value": f"{state}.{field}", "label": f"{label} ({unit})", "enabled": True,
-                 "timestampMethod": "receiveTime", "color": COLORS[i]}
+                {
+                    "value": f"{state}.{field}",
+                    "label": f"{label} ({unit})",
+                    "enabled": True,
+                    "timestampMethod": "receiveTime",
+                    "color": COLORS[i],
+                }
                 for i, (field, label) in enumerate(series)
             ],
             "xAxisVal": "timestamp",
@@ -87,8 +96,15 @@ def foxglove_layout(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Any]:
         plots.append(pid)
     panels["Plot!mu_v"] = {
         "foxglovePanelTitle": "μ against v_rel (operating point on the friction curve)",
-        "paths": [{"value": f"{state}.friction_coefficient", "label": "μ (1)", "enabled": True,
-                   "timestampMethod": "receiveTime", "color": COLORS[0]}],
+        "paths": [
+            {
+                "value": f"{state}.friction_coefficient",
+                "label": "μ (1)",
+                "enabled": True,
+                "timestampMethod": "receiveTime",
+                "color": COLORS[0],
+            }
+        ],
         "xAxisVal": "custom",
         "xAxisPath": {"value": f"{state}.relative_velocity", "enabled": True},
         "xAxisLabel": "v_rel (m/s)",
@@ -103,8 +119,15 @@ def foxglove_layout(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Any]:
     }
     panels["Plot!frequency"] = {
         "foxglovePanelTitle": "dominant frequency (Hz)",
-        "paths": [{"value": f"{_t(namespace, 'dominant_frequency')}.data", "label": "f (Hz)",
-                   "enabled": True, "timestampMethod": "receiveTime", "color": COLORS[0]}],
+        "paths": [
+            {
+                "value": f"{_t(namespace, 'dominant_frequency')}.data",
+                "label": "f (Hz)",
+                "enabled": True,
+                "timestampMethod": "receiveTime",
+                "color": COLORS[0],
+            }
+        ],
         "xAxisVal": "timestamp",
         "showLegend": False,
         "showXAxisLabels": True,
@@ -140,8 +163,12 @@ def foxglove_layout(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Any]:
     }
     left = _split([*plots, "Plot!mu_v"], "column")
     right = _split(
-        ["Image!wavelet", "Plot!frequency", "StateTransitions!stability",
-         _split(["RawMessages!stability", "DiagnosticSummary!rig"], "row")],
+        [
+            "Image!wavelet",
+            "Plot!frequency",
+            "StateTransitions!stability",
+            _split(["RawMessages!stability", "DiagnosticSummary!rig"], "row"),
+        ],
         "column",
     )
     return {

@@ -36,6 +36,7 @@ def runtime_parameters(law: str) -> frozenset[str]:
 CONFIG_PARAMETERS: tuple[str, ...] = config_parameters("junction_kinetics")
 RUNTIME_PARAMETERS: frozenset[str] = runtime_parameters("junction_kinetics")
 
+
 def _field(data: Mapping[str, Any], path: str) -> Any:
     for key in path.split("."):
         data = data[key]

@@ -35,8 +35,13 @@ class PlantSample(NamedTuple):
 
 #: The per-sample arrays of a PlantBlock, in RigStateBlock's field order.
 BLOCK_FIELDS: tuple[str, ...] = (
-    "displacement", "velocity", "friction_coefficient", "friction_force", "band_velocity",
-    "relative_velocity", "belt_travel",
+    "displacement",
+    "velocity",
+    "friction_coefficient",
+    "friction_force",
+    "band_velocity",
+    "relative_velocity",
+    "belt_travel",
 )
 
 
@@ -70,10 +75,16 @@ class PlantBlock:
         """The block as PlantSample tuples."""
         return [
             PlantSample(
-                float(self.time[i]), float(self.displacement[i]), float(self.velocity[i]),
-                float(self.friction_coefficient[i]), float(self.band_velocity[i]),
-                float(self.belt_travel[i]), float(self.friction_force[i]),
-                float(self.relative_velocity[i]), self.first_sample_index + i, self.segment,
+                float(self.time[i]),
+                float(self.displacement[i]),
+                float(self.velocity[i]),
+                float(self.friction_coefficient[i]),
+                float(self.band_velocity[i]),
+                float(self.belt_travel[i]),
+                float(self.friction_force[i]),
+                float(self.relative_velocity[i]),
+                self.first_sample_index + i,
+                self.segment,
             )
             for i in range(len(self))
         ]

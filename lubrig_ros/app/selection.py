@@ -82,8 +82,7 @@ class RunSelection:
             object.__setattr__(self, "config_file", Path(self.config_file))
         if self.case is not None and self.config_file is not None:
             raise ParameterError(
-                f"case={self.case!r} and config_file={str(self.config_file)!r} both given; "
-                "select one source"
+                f"case={self.case!r} and config_file={str(self.config_file)!r} both given; select one source"
             )
 
     @property
@@ -140,9 +139,7 @@ def apply_overrides(
     return config.with_overrides(**changes)
 
 
-def select_run(
-    case: int | None = None, config_file: str | Path | None = None, **overrides: Any
-) -> RunConfig:
+def select_run(case: int | None = None, config_file: str | Path | None = None, **overrides: Any) -> RunConfig:
     """Shorthand for RunSelection(case, config_file, **overrides).resolve() (0 / "": not given)."""
     path = Path(config_file) if config_file is not None and str(config_file) != "" else None
     return RunSelection(case=case or None, config_file=path, **overrides).resolve()

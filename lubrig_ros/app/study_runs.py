@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from lubrig_ros.core.errors import InputError
+
 from ..core import criteria
 from ..core.friction import friction_coefficient, stick_velocity
 from ..core.params import RigParameters
@@ -153,7 +155,7 @@ def write_scan_csv(path: Any, scan: dict[float, Metrics]) -> None:
 
     rows = scan_rows(scan)
     if not rows:
-        raise ValueError("the scan holds no rows")
+        raise InputError("the scan holds no rows")
     columns = list(rows[0])
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -107,6 +107,4 @@ class LatencyHistogram:
         if self.count == 0:
             return [0.0 for _ in qs]
         cumulative = np.cumsum(self.counts)
-        return [
-            float((np.searchsorted(cumulative, q / 100.0 * self.count) + 1) * self.BIN_S) for q in qs
-        ]
+        return [float((np.searchsorted(cumulative, q / 100.0 * self.count) + 1) * self.BIN_S) for q in qs]

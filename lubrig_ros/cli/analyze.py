@@ -14,6 +14,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from lubrig_ros.core.errors import InputError
+
 from ..app import rundir
 from ..app.analysis import DEFAULT_POLICY, MAX_POWER_POINTS, WaveletAnalysis, analyze_displacement
 from .common import parse_finite
@@ -36,7 +38,7 @@ def _number(
     what = f"a finite number {sign} {low:g}" + (f" and <= {high:g}" if math.isfinite(high) else "")
     value = parse_finite(option, text, what)
     if not (value >= low if inclusive else value > low) or value > high:
-        raise ValueError(f"{option} {text!r} is not valid; expected {what}")
+        raise InputError(f"{option} {text!r} is not valid; expected {what}")
     return value
 
 
@@ -93,7 +95,7 @@ def _run(args: argparse.Namespace) -> int:
     )
     components = _number(args.components, "--components", 1.0, high=MAX_COMPONENTS)
     if not components.is_integer():
-        raise ValueError(f"--components {args.components!r} is not an integer; expected 1..{MAX_COMPONENTS}")
+        raise InputError(f"--components {args.components!r} is not an integer; expected 1..{MAX_COMPONENTS}")
     n = int(components)
     section = analyze_run(Path(args.dir), start, dj, fmin, fmax, n)
     print(f"wrote {Path(args.dir) / 'wavelet.png'}; dominant frequencies:")

@@ -15,6 +15,7 @@ from pathlib import Path
 from lubrig_ros.bag import BagError, bag_info, repair_bag
 from lubrig_ros.bag.repair import repaired_path
 from lubrig_ros.bag.verify import Verification, verify_bag
+from lubrig_ros.core.errors import InputError
 
 
 def _problem_line(v: Verification) -> str:
@@ -48,7 +49,7 @@ def _print_problems(v: Verification) -> None:
 def _check(args: argparse.Namespace) -> int:
     v = verify_bag(args.bag, full=True)
     if v.problems and _unreadable(v):  # not a bag at all: exit status 2, as for info
-        raise ValueError(_problem_line(v))
+        raise InputError(_problem_line(v))
     _print_streams(v)
     _print_problems(v)
     if v.problems:
@@ -65,11 +66,11 @@ def _info(args: argparse.Namespace) -> int:
             _print_problems(v)
             print(f"lubrig bag info: {_problem_line(v)}", file=sys.stderr)
             return 1
-        raise ValueError(_problem_line(v))
+        raise InputError(_problem_line(v))
     try:
         summary = bag_info(args.bag)
     except BagError as exc:
-        raise ValueError(str(exc)) from exc
+        raise InputError(str(exc)) from exc
     print(summary.format())
     if args.config and summary.run_config:
         print("--- run configuration ---")
@@ -87,12 +88,12 @@ def _info(args: argparse.Namespace) -> int:
 def _repair(args: argparse.Namespace) -> int:
     in_place = args.in_place or args.replace
     if in_place and args.output:
-        raise ValueError("--output and --in-place/--replace exclude each other: give one")
+        raise InputError("--output and --in-place/--replace exclude each other: give one")
     try:
         output = None if in_place else (Path(args.output) if args.output else repaired_path(args.bag))
         report = repair_bag(args.bag, backup=not args.no_backup, force=args.force, output=output)
     except BagError as exc:
-        raise ValueError(str(exc)) from exc
+        raise InputError(str(exc)) from exc
     if not report.rewritten:
         print(
             f"{report.mcap}: verified intact, nothing to repair ({report.kept} messages; "

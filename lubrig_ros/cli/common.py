@@ -11,6 +11,8 @@ import os
 import re
 from pathlib import Path
 
+from lubrig_ros.core.errors import InputError
+
 from ..app.selection import RunSelection
 from ..core import schema
 from ..core.profiles import BandProfile, ConstantBand, RegularCycle, TableBand
@@ -25,9 +27,9 @@ def parse_finite(option: str, text: str, what: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise ValueError(f"{option} {text!r} is not a number; expected {what}") from None
+        raise InputError(f"{option} {text!r} is not a number; expected {what}") from None
     if not math.isfinite(value):
-        raise ValueError(f"{option} {text!r} is not finite; expected {what}")
+        raise InputError(f"{option} {text!r} is not finite; expected {what}")
     return value
 
 
@@ -41,9 +43,9 @@ def parse_workers(text: str, option: str = "--workers") -> int:
     try:
         value = int(text)
     except ValueError:
-        raise ValueError(f"{option} {text!r} is not an integer; expected {what}") from None
+        raise InputError(f"{option} {text!r} is not an integer; expected {what}") from None
     if not 1 <= value <= MAX_LOCAL_WORKERS:
-        raise ValueError(f"{option} {value} is not valid; expected {what}")
+        raise InputError(f"{option} {value} is not valid; expected {what}")
     return value
 
 
@@ -56,7 +58,7 @@ def parse_coupling(text: str, option: str = "--velocity-coupling") -> str | floa
     what = f"one of {'|'.join(CONVENTIONS)} or a number > 0 (γ in v_rel = v_band − γ ẋ)"
     value = parse_finite(option, text, what)
     if value <= 0.0:
-        raise ValueError(f"{option} {text!r} must be > 0; expected {what}")
+        raise InputError(f"{option} {text!r} must be > 0; expected {what}")
     return value
 
 
@@ -168,7 +170,7 @@ def check_fits_in_memory(
         return
     most = int(0.5 * free / bytes_per_sample)  # half of what is free: leave room for the rest
     if samples > most:
-        raise ValueError(
+        raise InputError(
             f"{samples} samples need about {samples * bytes_per_sample / 1e9:.3g} GB of memory, this "
             f"machine has {free / 1e9:.3g} GB available: at most {most} samples (--duration <= "
             f"{most / sample_rate:g} s at {sample_rate:g} Hz)"

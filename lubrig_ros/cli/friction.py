@@ -15,6 +15,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from lubrig_ros.core.errors import InputError
+
 from ..core import schema
 from ..core.friction import friction_coefficient, friction_minimum, friction_peak, friction_slope
 from ..core.params import FrictionParameters
@@ -32,7 +34,7 @@ def friction_parameters(base: FrictionParameters, choice: str | None) -> Frictio
             spec.check(params.contact_area)
         return params
     except ValueError as exc:
-        raise ValueError(f"--contact-area {choice!r}: {exc}") from None
+        raise InputError(f"--contact-area {choice!r}: {exc}") from None
 
 
 #: --at values per call at most (each is one line of output).
@@ -42,7 +44,7 @@ MAX_POINTS = 10_000
 def parse_velocities(texts: list[str]) -> list[float]:
     """The --at sliding velocities: finite (the law is defined for every double), not too many."""
     if len(texts) > MAX_POINTS:
-        raise ValueError(f"--at has {len(texts)} velocities; at most {MAX_POINTS}")
+        raise InputError(f"--at has {len(texts)} velocities; at most {MAX_POINTS}")
     what = "a finite sliding velocity in m/s (negative allowed: μ is odd)"
     return [parse_finite("--at", text, what) for text in texts]
 

@@ -8,6 +8,8 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
+from lubrig_ros.core.errors import LubrigError
+
 # Each module exposes register(subparsers) which adds its parser with set_defaults(func=...).
 SUBCOMMAND_MODULES: tuple[str, ...] = (
     "friction",
@@ -24,7 +26,7 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
 )
 
 
-class CommandError(Exception):
+class CommandError(LubrigError):
     """A user-facing failure: printed as one line, exit status 2."""
 
 
@@ -60,13 +62,16 @@ def _subcommand(argv: Sequence[str]) -> str | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run `lubrig`; user errors become one line on stderr and exit status 2."""
+    """Run `lubrig`; the project's errors and OSError become one line on stderr and exit status 2.
+
+    Any other exception is a bug and shows its traceback (core/errors.py).
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(_subcommand(argv))  # all of them for --help and for a wrong word
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (CommandError, ValueError, OSError) as exc:
+    except (LubrigError, OSError) as exc:
         print(f"lubrig {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

@@ -11,6 +11,8 @@ import argparse
 import time
 from pathlib import Path
 
+from lubrig_ros.core.errors import InputError
+
 from ..app.rundir import prepare_output_dir
 from ..app.study_runs import read_scan_csv, write_scan_csv
 from ..core.presets import config_dir, default_config
@@ -31,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
     """Entry of `lubrig paper`."""
     duration = parse_finite("--duration", args.duration, "a rig time in s (>= 4)")
     if duration < MIN_DURATION:
-        raise ValueError(f"--duration {duration!r} is not valid; expected at least {MIN_DURATION:g} s")
+        raise InputError(f"--duration {duration!r} is not valid; expected at least {MIN_DURATION:g} s")
     SIMULATION_FIELDS["duration"].check(duration, "--duration")
     rate = default_config().sample_rate  # every run of the study samples at the default rate
     check_fits_in_memory(round(duration * rate), rate)
@@ -49,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         path = Path(args.scan) if args.scan else committed_scan()
         if not path.is_file():
-            raise ValueError(f"scan table {str(path)!r} not found; pass --scan CSV or --recompute-scan")
+            raise InputError(f"scan table {str(path)!r} not found; pass --scan CSV or --recompute-scan")
         scan = read_scan_csv(path)
         source = f"read from {SCAN_TABLE}"
     out.mkdir(parents=True, exist_ok=True)

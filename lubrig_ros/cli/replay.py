@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from lubrig_ros.bag.verify import refuse_damaged
+from lubrig_ros.core.errors import InputError
 from lubrig_ros.nodes import replay
 
 
@@ -13,7 +14,7 @@ def _run(args: argparse.Namespace) -> int:
         refuse_damaged(args.bag, "lubrig replay")  # the cheap part of `lubrig bag check` first
         return replay.run(args)
     except replay.BagError as exc:
-        raise ValueError(str(exc)) from exc
+        raise InputError(str(exc)) from exc
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from lubrig_ros.core.errors import InputError
+
 from ..app.rundir import prepare_output_dir
 from ..bag.errors import BagError
 from ..bag.verify import refuse_damaged
@@ -20,7 +22,7 @@ def run(args: argparse.Namespace) -> int:
     try:  # the cheap part of `lubrig bag check` first: a damaged bag is refused in one line
         refuse_damaged(bag, "lubrig report")
     except BagError as exc:
-        raise ValueError(str(exc)) from None
+        raise InputError(str(exc)) from None
     page = write_report(bag, out, force=args.force)
     print(f"report: {page}")
     return 0

@@ -13,6 +13,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from lubrig_ros.core.errors import InputError
+
 from ..core.friction import friction_minimum, friction_peak
 from ..core.params import CONVENTIONS, RigParameters, check_rig_ranges
 from ..core.schema import BAND_VELOCITY_LIMIT
@@ -31,7 +33,7 @@ def parse_zeta(text: str) -> float:
     """
     value = parse_finite("--zeta", text, "a finite damping ratio >= 0")
     if value < 0.0:
-        raise ValueError(f"--zeta {text!r} is negative; expected a finite damping ratio >= 0")
+        raise InputError(f"--zeta {text!r} is negative; expected a finite damping ratio >= 0")
     return value
 
 
@@ -43,7 +45,7 @@ def rig_parameters(
 ) -> RigParameters:
     """The selected run's rig with the convention (or an explicit γ) and contact area overridden."""
     if convention is not None and convention not in CONVENTIONS:
-        raise ValueError(f"--convention {convention!r} is not valid; expected one of {'|'.join(CONVENTIONS)}")
+        raise InputError(f"--convention {convention!r} is not valid; expected one of {'|'.join(CONVENTIONS)}")
     rig = replace(
         base,
         convention=base.convention if convention is None else convention,
@@ -90,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     """Execute `lubrig stability`."""
     config = source_from_args(args).base()
     if args.zeta and len(args.zeta) > MAX_ZETAS:
-        raise ValueError(f"--zeta has {len(args.zeta)} values; at most {MAX_ZETAS}")
+        raise InputError(f"--zeta has {len(args.zeta)} values; at most {MAX_ZETAS}")
     zetas = [parse_zeta(text) for text in args.zeta] if args.zeta else [config.rig.damping_ratio]
     rig = rig_parameters(config.rig, args.convention, args.contact_area, args.velocity_coupling)
     report = stability_report(rig, zetas)
@@ -98,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         limit = BAND_VELOCITY_LIMIT
         v = parse_finite("--at", args.at, f"a band velocity > 0 and <= {limit:g} m/s")
         if not 0.0 < v <= limit:
-            raise ValueError(
+            raise InputError(
                 f"--at {args.at!r} is not valid; expected a band velocity > 0 and <= {limit:g} m/s"
             )
         report["critical_damping_ratio"] = {

@@ -14,6 +14,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from lubrig_ros.core.errors import InputError
+
 from ..sweep.engine import LOCAL, SERIAL, check_scheduler, run_sweep
 from ..sweep.spec import SweepSpec, load_spec
 from .common import MAX_LOCAL_WORKERS, parse_finite, parse_workers
@@ -29,7 +31,7 @@ def _worker_timeout(text: str) -> float:
     what = f"seconds in (0, {MAX_WORKER_TIMEOUT_S:g}]"
     value = parse_finite("--worker-timeout", text, what)
     if not 0.0 < value <= MAX_WORKER_TIMEOUT_S:
-        raise ValueError(f"--worker-timeout {text!r} is not valid; expected {what}")
+        raise InputError(f"--worker-timeout {text!r} is not valid; expected {what}")
     return value
 
 
@@ -42,13 +44,13 @@ def check_reachable(scheduler: str, timeout: float) -> None:
     try:
         port = int(port_text)
     except ValueError:
-        raise ValueError(f"--scheduler {scheduler!r} has no port; expected tcp://host:port") from None
+        raise InputError(f"--scheduler {scheduler!r} has no port; expected tcp://host:port") from None
     if not (host and 0 < port < 65536):
-        raise ValueError(f"--scheduler {scheduler!r} is not valid; expected tcp://host:port (port 1..65535)")
+        raise InputError(f"--scheduler {scheduler!r} is not valid; expected tcp://host:port (port 1..65535)")
     try:
         socket.create_connection((host.strip("[]"), port), timeout=min(timeout, 10.0)).close()
     except OSError as exc:
-        raise ValueError(
+        raise InputError(
             f"--scheduler {scheduler!r} cannot be reached ({exc.strerror or exc}); start it with "
             f"`dask scheduler --port {port}` or give another address"
         ) from None
@@ -60,7 +62,7 @@ def check_size(spec: SweepSpec) -> None:
         round(p.config["simulation"]["duration"] * p.config["simulation"]["sample_rate"]) for p in spec.points
     )
     if total > MAX_SWEEP_SAMPLES:
-        raise ValueError(
+        raise InputError(
             f"the sweep has {len(spec.points)} points of {total:.3g} samples in all; at most "
             f"{MAX_SWEEP_SAMPLES:.0e} (fewer points or shorter runs, or several sweeps)"
         )

@@ -14,12 +14,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lubrig_ros.core.errors import InputError
+
 
 def _arrays(time: np.typing.ArrayLike, signal: np.typing.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(time, dtype=float)
     x = np.asarray(signal, dtype=float)
     if t.shape != x.shape or t.ndim != 1:
-        raise ValueError(f"time and signal must be 1-D arrays of equal length, got {t.shape}, {x.shape}")
+        raise InputError(f"time and signal must be 1-D arrays of equal length, got {t.shape}, {x.shape}")
     return t, x
 
 
@@ -33,7 +35,7 @@ def windowed_peak_to_peak(
     """Peak-to-peak of the signal in consecutive windows of `window` s: (window centres, p-p)."""
     t, x = _arrays(time, signal)
     if not (math.isfinite(window) and window > 0):
-        raise ValueError(f"window={window!r} must be a finite duration > 0 s")
+        raise InputError(f"window={window!r} must be a finite duration > 0 s")
     lo = t[0] if start is None else max(float(start), t[0])
     hi = t[-1] if stop is None else min(float(stop), t[-1])
     count = math.floor((hi - lo) / window + 1e-9)
@@ -132,12 +134,12 @@ def component_amplitude(
     """
     t, x = _arrays(time, signal)
     if not (math.isfinite(frequency) and frequency > 0):
-        raise ValueError(f"frequency={frequency!r} must be a finite frequency > 0 Hz")
+        raise InputError(f"frequency={frequency!r} must be a finite frequency > 0 Hz")
     hop = window / 4.0 if hop is None else hop
     dt = float(np.median(np.diff(t)))
     n = round(window / dt)
     if n < 8 or n > t.size:
-        raise ValueError(f"window={window!r} s holds {n} samples; need 8 … {t.size}")
+        raise InputError(f"window={window!r} s holds {n} samples; need 8 … {t.size}")
     step = max(1, round(hop / dt))
     w = np.hanning(n)
     phase = np.exp(-2j * np.pi * frequency * t)
@@ -199,7 +201,7 @@ def transient(
     t, _ = _arrays(time, signal)
     centres, ptp = windowed_peak_to_peak(time, signal, window)
     if centres.size < 4:
-        raise ValueError(f"the record holds {centres.size} windows of {window:g} s; need at least 4")
+        raise InputError(f"the record holds {centres.size} windows of {window:g} s; need at least 4")
     duration = t[-1] - t[0]
     q3 = (centres >= t[0] + 0.5 * duration) & (centres < t[0] + 0.75 * duration)
     q4 = centres >= t[0] + 0.75 * duration
@@ -243,7 +245,7 @@ def limit_cycle_separation(
     for value in (first, second):
         pick = lab == value
         if pick.sum() < 4:
-            raise ValueError(f"label {value!r} has {int(pick.sum())} samples; need at least 4")
+            raise InputError(f"label {value!r} has {int(pick.sum())} samples; need at least 4")
         cx, cy = x[pick].mean(), y[pick].mean()
         centres.append((cx, cy))
         radii.append(float(np.quantile(np.hypot(x[pick] - cx, y[pick] - cy), quantile)))

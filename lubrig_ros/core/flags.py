@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from lubrig_ros.core.errors import InputError
+
 from .friction import stick_velocity_or_none
 from .params import RigParameters
 from .stability import ZONE_NAMES, linear_stability
@@ -46,7 +48,7 @@ class StickStats:
 def detect_stick(relative_velocity: Any, dt: float, threshold_m_s: float) -> StickStats:
     """Count stick runs (|v_rel| < threshold) and their share of the samples."""
     if not (math.isfinite(threshold_m_s) and threshold_m_s > 0.0):
-        raise ValueError(f"threshold_m_s={threshold_m_s!r} is not valid; expected > 0 m/s")
+        raise InputError(f"threshold_m_s={threshold_m_s!r} is not valid; expected > 0 m/s")
     v = check_signal(relative_velocity, "relative_velocity", min_length=1)
     stuck = np.abs(v) < threshold_m_s
     edges = np.diff(np.concatenate(([0], stuck.astype(np.int8), [0])))
@@ -55,9 +57,7 @@ def detect_stick(relative_velocity: Any, dt: float, threshold_m_s: float) -> Sti
     return StickStats(float(threshold_m_s), float(stuck.mean()), int(starts.size), longest)
 
 
-def envelope_growth_rate(
-    result: WaveletResult, frequency_hz: float
-) -> tuple[float | None, float | None]:
+def envelope_growth_rate(result: WaveletResult, frequency_hz: float) -> tuple[float | None, float | None]:
     """(rate in 1/s, R² of the fit) of log √power at the scale nearest frequency_hz.
 
     Uses only points outside the cone of influence; (None, None) when fewer than MIN_FIT_POINTS
@@ -76,9 +76,7 @@ def envelope_growth_rate(
     return float(slope), r2
 
 
-def signal_growth_rate(
-    signal: Any, dt: float, frequency_hz: float
-) -> tuple[float | None, float | None]:
+def signal_growth_rate(signal: Any, dt: float, frequency_hz: float) -> tuple[float | None, float | None]:
     """Envelope growth rate (1/s, R²) of a signal's component at frequency_hz (one-scale CWT)."""
     x = check_signal(signal)
     if not np.any(x - x.mean()):
@@ -95,9 +93,9 @@ def resonance_check(
 ) -> tuple[bool, int | None, str]:
     """(warning, harmonic k, text): is some k f_band (k ≤ harmonics) within margin × f0 of f0."""
     if not (math.isfinite(fundamental_hz) and fundamental_hz > 0.0):
-        raise ValueError(f"fundamental_hz={fundamental_hz!r} is not valid; expected > 0 Hz")
+        raise InputError(f"fundamental_hz={fundamental_hz!r} is not valid; expected > 0 Hz")
     if not (0.0 < margin < 1.0):
-        raise ValueError(f"margin={margin!r} is not valid; expected a fraction in (0, 1)")
+        raise InputError(f"margin={margin!r} is not valid; expected a fraction in (0, 1)")
     best = min(range(1, harmonics + 1), key=lambda k: abs(k * fundamental_hz - natural_hz))
     distance = abs(best * fundamental_hz - natural_hz) / natural_hz
     name = "fundamental" if best == 1 else f"harmonic {best}"
@@ -177,7 +175,7 @@ def evaluate_flags(
         span = wavelet.time[-1] - wavelet.time[0]
     elif displacement is not None:
         if dt is None:
-            raise ValueError("dt is required with displacement (sample interval in s)")
+            raise InputError("dt is required with displacement (sample interval in s)")
         rate, r2 = signal_growth_rate(displacement, dt, f0)
         span = (np.asarray(displacement).size - 1) * dt
     if rate is not None and span:
@@ -188,7 +186,7 @@ def evaluate_flags(
     values.update(growth_rate_per_s=rate, growth_fit_r2=r2)
     if relative_velocity is not None:
         if dt is None:
-            raise ValueError("dt is required with relative_velocity (sample interval in s)")
+            raise InputError("dt is required with relative_velocity (sample interval in s)")
         threshold = stick_threshold_m_s
         if threshold is None:
             threshold = stick_velocity_or_none(rig.friction)  # None: the law has no peak

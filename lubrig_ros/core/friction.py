@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from lubrig_ros.core.errors import InputError
+
 from .friction_laws import CurveLandmark, FrictionLaw, law_for
 from .params import FrictionParameters, ParameterError
 
@@ -40,7 +42,7 @@ def _evaluate(velocity: np.typing.ArrayLike, params: Any | None) -> tuple[np.nda
     if not np.isfinite(v).all():
         bad = v[~np.isfinite(v)].flat[0]
         what = "NaN" if np.isnan(bad) else repr(float(bad))
-        raise ValueError(f"velocity contains {what}; expected finite sliding velocities in m/s")
+        raise InputError(f"velocity contains {what}; expected finite sliding velocities in m/s")
     mu, dmu = law_for(params).evaluate(np.ascontiguousarray(v).ravel(), params)
     return mu.reshape(v.shape), dmu.reshape(v.shape)
 

@@ -30,6 +30,8 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from lubrig_ros.core.errors import InputError
+
 from .validation import ParameterError
 
 #: The law a friction section without `law:` means (the study's junction kinetics).
@@ -200,11 +202,11 @@ def register_law(law: FrictionLaw) -> FrictionLaw:
     """Add a law to the registry under law.name (its parameters' `law` must say the same)."""
     name = law.name
     if getattr(law.parameters, "law", None) != name:
-        raise ValueError(f"{law!r}: parameters {law.parameters.__name__}.law must be {name!r}")
+        raise InputError(f"{law!r}: parameters {law.parameters.__name__}.law must be {name!r}")
     if not is_dataclass(law.parameters) or "normal_force" not in {f.name for f in fields(law.parameters)}:
-        raise ValueError(f"{law!r}: parameters must be a dataclass with a normal_force field (N)")
+        raise InputError(f"{law!r}: parameters must be a dataclass with a normal_force field (N)")
     if name in _REGISTRY and _REGISTRY[name] is not law:
-        raise ValueError(f"friction law {name!r} is already registered")
+        raise InputError(f"friction law {name!r} is already registered")
     _REGISTRY[name] = law
     return law
 

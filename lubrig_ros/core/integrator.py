@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from lubrig_ros.core.errors import InputError, LubrigError
+
 from .friction_laws import law_for
 from .kernels import (
     _A,
@@ -41,7 +43,7 @@ from .params import RigParameters
 from .trajectory import Trajectory
 
 
-class IntegrationError(RuntimeError):
+class IntegrationError(LubrigError, RuntimeError):
     """The integrator could not meet its tolerance (step size collapsed)."""
 
 
@@ -70,12 +72,12 @@ class RigIntegrator:
         for name in ("initial_band_velocity", "sample_rate", "rtol", "initial_perturbation"):
             value = float(getattr(self, name))
             if not math.isfinite(value):
-                raise ValueError(f"{name}={value!r} must be finite")
+                raise InputError(f"{name}={value!r} must be finite")
             setattr(self, name, value)
         if self.sample_rate <= 0.0:
-            raise ValueError(f"sample_rate={self.sample_rate!r} must be > 0 Hz")
+            raise InputError(f"sample_rate={self.sample_rate!r} must be > 0 Hz")
         if not 1e-13 <= self.rtol <= 1e-2:
-            raise ValueError(f"rtol={self.rtol!r} is outside the valid range [1e-13, 1e-2]")
+            raise InputError(f"rtol={self.rtol!r} is outside the valid range [1e-13, 1e-2]")
         self._rig_array = np.array(
             [
                 self.rig.mass,
@@ -112,7 +114,7 @@ class RigIntegrator:
             self.initial_band_velocity = float(band_velocity)
         self._check_resolved(self.initial_band_velocity)
         if not math.isfinite(time):
-            raise ValueError(f"time={time!r} must be finite")
+            raise InputError(f"time={time!r} must be finite")
         if self.initial_displacement is not None:
             x_start = float(self.initial_displacement)
         else:
@@ -137,7 +139,7 @@ class RigIntegrator:
         """
         resolution = self._scales[1]
         if 0.0 < abs(band_velocity) < resolution:
-            raise ValueError(
+            raise InputError(
                 f"band velocity {band_velocity!r} m/s is below the velocity the integrator resolves "
                 f"at rtol {self.rtol:g} ({resolution:.2g} m/s); expected 0 (band at rest) or "
                 f"|v| >= {resolution:.2g} m/s"
@@ -194,7 +196,7 @@ class RigIntegrator:
         carries on where the last call stopped. The finished sample equals advance([band_velocity]).
         """
         if max_attempts < 1:
-            raise ValueError(f"max_attempts={max_attempts!r} must be >= 1 step attempt")
+            raise InputError(f"max_attempts={max_attempts!r} must be >= 1 step attempt")
         band = self._band([band_velocity])
         resumed = self.in_progress
         t_start = self._state[PARTIAL_T0] if resumed else self._state[0]
@@ -207,7 +209,7 @@ class RigIntegrator:
         band = np.ascontiguousarray(band_velocities, dtype=np.float64).reshape(-1)
         if not np.isfinite(band).all():
             bad = band[~np.isfinite(band)][0]
-            raise ValueError(f"band velocity {bad!r} is not finite; expected finite m/s values")
+            raise InputError(f"band velocity {bad!r} is not finite; expected finite m/s values")
         return band
 
     def _run(self, band: np.ndarray, max_attempts: int) -> tuple[np.ndarray, np.ndarray]:

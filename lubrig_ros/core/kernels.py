@@ -132,7 +132,9 @@ def _solve3(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
         x[row] = acc / a[row, row]
 
 
-def _radau_step_py(
+# One Radau IIA step with its Newton iteration, written as numba compiles it (one function, no
+# calls in the inner loop): splitting it would add calls to the hottest path of every run.
+def _radau_step_py(  # noqa: C901
     x: float,
     w: float,
     t: float,

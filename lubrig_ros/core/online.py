@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from lubrig_ros.core.errors import InputError
+
 from .flags import StabilityFlags, evaluate_flags
 from .params import RigParameters
 from .wavelet import (
@@ -82,17 +84,17 @@ class OnlineWaveletAnalyzer:
     ) -> None:
         self.dt = _check_dt(dt)
         if not isinstance(window, (int, np.integer)) or window < MIN_SAMPLES:
-            raise ValueError(f"window={window!r} is not valid; expected an integer >= {MIN_SAMPLES}")
+            raise InputError(f"window={window!r} is not valid; expected an integer >= {MIN_SAMPLES}")
         if not isinstance(n_scales, (int, np.integer)) or n_scales < 2:
-            raise ValueError(f"n_scales={n_scales!r} is not valid; expected an integer >= 2")
+            raise InputError(f"n_scales={n_scales!r} is not valid; expected an integer >= 2")
         if precision not in ("single", "double"):
-            raise ValueError(f"precision={precision!r} is not valid; expected 'single' or 'double'")
+            raise InputError(f"precision={precision!r} is not valid; expected 'single' or 'double'")
         if not isinstance(analysis_every, (int, np.integer)) or analysis_every < 1:
-            raise ValueError(f"analysis_every={analysis_every!r} is not valid; expected >= 1")
+            raise InputError(f"analysis_every={analysis_every!r} is not valid; expected >= 1")
         fmax = 0.25 / self.dt if fmax is None else float(fmax)
         fmin = 4.0 / (window * self.dt) if fmin is None else float(fmin)
         if not (0.0 < fmin < fmax <= 0.5 / self.dt):
-            raise ValueError(
+            raise InputError(
                 f"fmin={fmin!r} Hz, fmax={fmax!r} Hz are not valid; expected "
                 f"0 < fmin < fmax <= {0.5 / self.dt:g} Hz (Nyquist)"
             )
@@ -179,14 +181,14 @@ class OnlineWaveletAnalyzer:
         """
         x_new = np.atleast_1d(np.asarray(samples, dtype=float))
         if x_new.ndim != 1:
-            raise ValueError(f"samples have shape {x_new.shape}; expected a 1-D array")
+            raise InputError(f"samples have shape {x_new.shape}; expected a 1-D array")
         if not np.all(np.isfinite(x_new)):
-            raise ValueError("samples contain NaN or infinite values; expected finite samples")
+            raise InputError("samples contain NaN or infinite values; expected finite samples")
         v_new = None
         if relative_velocity is not None:
             v_new = np.atleast_1d(np.asarray(relative_velocity, dtype=float))
             if v_new.shape != x_new.shape or not np.all(np.isfinite(v_new)):
-                raise ValueError(f"relative_velocity must be finite with the samples' shape {x_new.shape}")
+                raise InputError(f"relative_velocity must be finite with the samples' shape {x_new.shape}")
         if band_velocity is not None:
             self._band_velocity = float(band_velocity)
         empty = OnlineUpdate(False, np.empty(0), np.empty((self.scales.size, 0)), self.frequencies)

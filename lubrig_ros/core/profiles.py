@@ -21,6 +21,8 @@ from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
+from lubrig_ros.core.errors import InputError
+
 from .schema import BAND_FIELDS, BAND_VELOCITY_LIMIT, band_field
 from .validation import ParameterError
 
@@ -66,9 +68,9 @@ def register_profile(cls: _P) -> _P:
     """Class decorator: register a profile dataclass under its class attribute `kind`."""
     kind = getattr(cls, "kind", None)
     if not isinstance(kind, str) or not kind:
-        raise ValueError(f"{cls.__name__} needs a class attribute kind (a non-empty string)")
+        raise InputError(f"{cls.__name__} needs a class attribute kind (a non-empty string)")
     if kind in _KINDS and _KINDS[kind] is not cls:
-        raise ValueError(f"band profile kind {kind!r} is already registered ({_KINDS[kind].__name__})")
+        raise InputError(f"band profile kind {kind!r} is already registered ({_KINDS[kind].__name__})")
     _KINDS[kind] = cls
     return cls
 
@@ -377,7 +379,7 @@ def _node_fields(cls: type[Any]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for f in fields(cls):
         if f.default is MISSING:
-            raise ValueError(f"{cls.__name__}.{f.name} needs a default to be a node parameter")
+            raise InputError(f"{cls.__name__}.{f.name} needs a default to be a node parameter")
         out[f.name] = f.default
     return out
 

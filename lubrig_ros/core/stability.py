@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from lubrig_ros.core.errors import InputError
+
 from .friction import friction_coefficient, friction_landmarks, friction_peak, friction_slope
 from .params import RigParameters
 
@@ -75,9 +77,7 @@ def friction_zone(band_velocity: np.typing.ArrayLike, rig: RigParameters) -> np.
     return np.where(v < peak.velocity, 1, np.where(v < upper, 2, 3))
 
 
-def critical_damping_ratio(
-    band_velocity: np.typing.ArrayLike, rig: RigParameters
-) -> np.ndarray:
+def critical_damping_ratio(band_velocity: np.typing.ArrayLike, rig: RigParameters) -> np.ndarray:
     """ζ_crit(v_band) = max(0, −ω0 γ N μ'/(2k)): damping above it stabilizes the equilibrium."""
     return _critical(rig, friction_slope(band_velocity, rig.friction))
 
@@ -86,7 +86,7 @@ def linear_stability(band_velocity: float, rig: RigParameters) -> LinearStabilit
     """Routh–Hurwitz verdict for a constant band velocity (m/s)."""
     v = float(band_velocity)
     if not np.isfinite(v) or v <= 0.0:
-        raise ValueError(f"band_velocity={band_velocity!r} must be a finite velocity > 0 m/s")
+        raise InputError(f"band_velocity={band_velocity!r} must be a finite velocity > 0 m/s")
     mu = float(friction_coefficient(v, rig.friction))
     slope = float(friction_slope(v, rig.friction))
     effective = float(_effective(rig.damping_ratio, rig, slope))
@@ -115,10 +115,11 @@ def unstable_intervals(
     Edges are located on a log grid and then refined by bisection on the effective damping.
     """
     if not np.isfinite(damping_ratio) or damping_ratio < 0:
-        raise ValueError(f"damping_ratio={damping_ratio!r} must be a finite number >= 0")
+        raise InputError(f"damping_ratio={damping_ratio!r} must be a finite number >= 0")
     rig = replace(rig, damping_ratio=damping_ratio)
     decades = np.log10(v_max) - np.log10(v_min)
     v = np.logspace(np.log10(v_min), np.log10(v_max), int(decades * points_per_decade) + 1)
+
     def effective(velocity: float | np.ndarray) -> np.ndarray:
         return _effective(damping_ratio, rig, friction_slope(velocity, rig.friction))
 
@@ -148,9 +149,7 @@ def unstable_intervals(
     return intervals
 
 
-def stability_map(
-    band_velocities: np.ndarray, damping_ratios: np.ndarray, rig: RigParameters
-) -> np.ndarray:
+def stability_map(band_velocities: np.ndarray, damping_ratios: np.ndarray, rig: RigParameters) -> np.ndarray:
     """Boolean grid [ζ, v_band]: True where the equilibrium is linearly stable."""
     slope = friction_slope(np.asarray(band_velocities, dtype=float), rig.friction)
     zeta = np.asarray(damping_ratios, dtype=float)[:, None]

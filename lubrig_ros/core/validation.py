@@ -5,8 +5,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from lubrig_ros.core.errors import LubrigError
 
-class ParameterError(ValueError):
+
+class ParameterError(LubrigError, ValueError):
     """A parameter value outside what the model accepts; the message names value and valid range."""
 
 

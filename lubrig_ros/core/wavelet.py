@@ -17,6 +17,8 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.special import chdtri
 
+from lubrig_ros.core.errors import InputError
+
 #: Morlet wave number (nondimensional frequency) used by the study and by Torrence & Compo.
 OMEGA0 = 6.0
 #: Reconstruction factor C_δ of the Morlet (ω0 = 6) wavelet, Torrence & Compo Table 2.
@@ -45,9 +47,9 @@ def _check_dt(dt: float) -> float:
     try:
         value = float(dt)
     except (TypeError, ValueError):
-        raise ValueError(f"dt={dt!r} is not a number; expected a sample interval > 0 s") from None
+        raise InputError(f"dt={dt!r} is not a number; expected a sample interval > 0 s") from None
     if not math.isfinite(value) or value <= 0.0:
-        raise ValueError(f"dt={dt!r} is not valid; expected a finite sample interval > 0 s")
+        raise InputError(f"dt={dt!r} is not valid; expected a finite sample interval > 0 s")
     return value
 
 
@@ -55,13 +57,13 @@ def check_signal(signal: Any, name: str = "signal", min_length: int = MIN_SAMPLE
     """Return the signal as a 1-D float array or raise ValueError naming what is wrong."""
     x = np.asarray(signal, dtype=float)
     if x.ndim != 1:
-        raise ValueError(f"{name} has shape {x.shape}; expected a 1-D array of samples")
+        raise InputError(f"{name} has shape {x.shape}; expected a 1-D array of samples")
     if x.size < min_length:
-        raise ValueError(f"{name} has {x.size} samples; at least {min_length} are needed")
+        raise InputError(f"{name} has {x.size} samples; at least {min_length} are needed")
     bad = ~np.isfinite(x)
     if bad.any():
         first = int(np.argmax(bad))
-        raise ValueError(
+        raise InputError(
             f"{name} contains {int(bad.sum())} non-finite value(s) (first {x[first]!r} at index "
             f"{first}); expected finite samples"
         )
@@ -84,32 +86,32 @@ def scale_grid(
     """
     dt = _check_dt(dt)
     if not (math.isfinite(dj) and dj > 0.0):
-        raise ValueError(f"dj={dj!r} is not valid; expected a scale step > 0 octaves")
+        raise InputError(f"dj={dj!r} is not valid; expected a scale step > 0 octaves")
     ff = fourier_factor()
     nyquist = 0.5 / dt
     if fmax is not None:
         if not (math.isfinite(fmax) and 0.0 < fmax <= nyquist):
-            raise ValueError(f"fmax={fmax!r} Hz is not valid; expected 0 < fmax <= {nyquist:g} Hz")
+            raise InputError(f"fmax={fmax!r} Hz is not valid; expected 0 < fmax <= {nyquist:g} Hz")
         s0 = 1.0 / (fmax * ff)
     if s0 is None:
         s0 = 2.0 * dt
     if not (math.isfinite(s0) and s0 > 0.0):
-        raise ValueError(f"s0={s0!r} is not valid; expected a smallest scale > 0 s")
+        raise InputError(f"s0={s0!r} is not valid; expected a smallest scale > 0 s")
     if fmin is not None:
         if not (math.isfinite(fmin) and fmin > 0.0):
-            raise ValueError(f"fmin={fmin!r} Hz is not valid; expected fmin > 0 Hz")
+            raise InputError(f"fmin={fmin!r} Hz is not valid; expected fmin > 0 Hz")
         s_max = 1.0 / (fmin * ff)
     else:
         s_max = n_samples * dt
     if n_scales is None:
         if s_max < s0:
-            raise ValueError(
+            raise InputError(
                 f"largest scale {s_max:g} s is below the smallest {s0:g} s; "
                 "check fmin/fmax and the signal length"
             )
         n_scales = math.floor(math.log2(s_max / s0) / dj) + 1
     if n_scales < 1:
-        raise ValueError(f"n_scales={n_scales!r} is not valid; expected at least 1 scale")
+        raise InputError(f"n_scales={n_scales!r} is not valid; expected at least 1 scale")
     return s0 * 2.0 ** (dj * np.arange(n_scales))
 
 
@@ -163,7 +165,7 @@ def lag1_autocorrelation(x: np.ndarray) -> float:
 def red_noise_spectrum(periods: np.ndarray, dt: float, lag1: float) -> np.ndarray:
     """Return the normalized AR(1) spectrum (1−α²)/(1+α²−2α cos(2π dt/T)) at periods T."""
     if not (math.isfinite(lag1) and 0.0 <= lag1 < 1.0):
-        raise ValueError(f"lag1={lag1!r} is not valid; expected an AR(1) coefficient in [0, 1)")
+        raise InputError(f"lag1={lag1!r} is not valid; expected an AR(1) coefficient in [0, 1)")
     cos = np.cos(2.0 * math.pi * dt / np.asarray(periods, dtype=float))
     return (1.0 - lag1**2) / (1.0 + lag1**2 - 2.0 * lag1 * cos)
 
@@ -177,7 +179,7 @@ def significance_level(
     scalar or per scale): time-averaged power with ν = 2√(1 + (n dt/(γ s))²) (TC eq. 23).
     """
     if not 0.0 < level < 1.0:
-        raise ValueError(f"level={level!r} is not valid; expected a confidence level in (0, 1)")
+        raise InputError(f"level={level!r} is not valid; expected a confidence level in (0, 1)")
     background = red_noise_spectrum(periods, dt, lag1)
     if n_average is None:
         return background * chdtri(2.0, 1.0 - level) / 2.0
@@ -301,21 +303,17 @@ def cwt(
     x = check_signal(signal)
     x = x - x.mean()
     if not np.any(x):
-        raise ValueError(
-            "signal is constant (variance 0); its normalized wavelet power is undefined"
-        )
+        raise InputError("signal is constant (variance 0); its normalized wavelet power is undefined")
     if scales is None:
         scales = scale_grid(dt, x.size, dj, s0, n_scales, fmin, fmax)
     else:
         scales = np.asarray(scales, dtype=float)
         if scales.ndim != 1 or scales.size == 0 or not np.all(np.isfinite(scales) & (scales > 0)):
-            raise ValueError("scales must be a non-empty 1-D array of finite scales > 0 s")
+            raise InputError("scales must be a non-empty 1-D array of finite scales > 0 s")
     n_fft = padded_length(x.size)
     coeffs = transform_coefficients(x, daughter_fft(scales, n_fft, dt), n_fft)
     raw = coeffs.real**2 + coeffs.imag**2
-    return build_result(
-        x, raw, scales, dt, dj, t0, lag1, level, coeffs if keep_coefficients else None
-    )
+    return build_result(x, raw, scales, dt, dj, t0, lag1, level, coeffs if keep_coefficients else None)
 
 
 def _refine_peak(values: np.ndarray, j: int) -> tuple[float, float]:
@@ -433,7 +431,7 @@ def dominant_components(
     interpolation, strongest first; those below min_relative_power × the strongest are dropped.
     """
     if n < 1:
-        raise ValueError(f"n={n!r} is not valid; expected at least 1 component")
+        raise InputError(f"n={n!r} is not valid; expected at least 1 component")
     if result.variance <= 0.0:
         return []
     mask = result.outside_coi.copy()
@@ -502,7 +500,7 @@ def dominant_frequencies(
     x = np.asarray(signal, dtype=float)
     if start is not None:
         if not (math.isfinite(start) and start >= 0.0):
-            raise ValueError(f"start={start!r} s is not valid; expected a time >= 0 s")
+            raise InputError(f"start={start!r} s is not valid; expected a time >= 0 s")
         x = x[round(start / dt) :] if x.ndim == 1 else x
     x = check_signal(x, "signal (after start)" if start else "signal")
     if not np.any(x - x.mean()):

@@ -12,6 +12,8 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from lubrig_ros.core.errors import InputError
+
 from ..core.friction import friction_coefficient, friction_minimum, friction_peak, friction_slope
 from ..core.params import FrictionParameters, RigParameters
 from ..core.stability import critical_damping_ratio
@@ -34,7 +36,7 @@ def friction_curve_table(
 ) -> np.ndarray:
     """Columns v (m/s), μ, dμ/dv (s/m) on a log-spaced grid; what the CSV and Fig. 4 show."""
     if not (0.0 < v_min < v_max) or not np.isfinite(v_max):
-        raise ValueError(f"velocity range [{v_min!r}, {v_max!r}] must satisfy 0 < v_min < v_max")
+        raise InputError(f"velocity range [{v_min!r}, {v_max!r}] must satisfy 0 < v_min < v_max")
     decades = np.log10(v_max) - np.log10(v_min)
     v = np.logspace(np.log10(v_min), np.log10(v_max), round(float(decades) * points_per_decade) + 1)
     return np.column_stack([v, friction_coefficient(v, params), friction_slope(v, params)])

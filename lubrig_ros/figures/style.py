@@ -137,7 +137,7 @@ def overlapping_texts(fig: Figure) -> list[tuple[str, str]]:
     boxes = text_boxes(fig)
     pairs = []
     for i, (a, box_a) in enumerate(boxes):
-        for b, box_b in boxes[i + 1:]:
+        for b, box_b in boxes[i + 1 :]:
             dx = min(box_a.x1, box_b.x1) - max(box_a.x0, box_b.x0)
             dy = min(box_a.y1, box_b.y1) - max(box_a.y0, box_b.y0)
             if dx > 1.0 and dy > 1.0:

@@ -63,12 +63,18 @@ def phase_figure(
     ax = fig.subplots()
     half = trajectory.time >= trajectory.time[-1] / 2.0
     ax.plot(
-        trajectory.displacement[~half] * 1e9, trajectory.velocity[~half], lw=0.5,
-        color=style.COLOURS["transient"], label="first half (transient)",
+        trajectory.displacement[~half] * 1e9,
+        trajectory.velocity[~half],
+        lw=0.5,
+        color=style.COLOURS["transient"],
+        label="first half (transient)",
     )
     ax.plot(
-        trajectory.displacement[half] * 1e9, trajectory.velocity[half], lw=0.7,
-        color=style.COLOURS["displacement"], label="second half (stationary)",
+        trajectory.displacement[half] * 1e9,
+        trajectory.velocity[half],
+        lw=0.7,
+        color=style.COLOURS["displacement"],
+        label="second half (stationary)",
     )
     ax.set_xlabel("displacement x (nm)")
     ax.set_ylabel("velocity ẋ (m/s)")
@@ -93,8 +99,12 @@ def friction_velocity_figure(
     if np.any(trajectory.friction_coefficient < 0):
         ax_mu.axhline(0.0, color="0.3", lw=0.6)
     ax_v.plot(
-        trajectory.time, trajectory.relative_velocity, lw=2.0, color=style.COLOURS["relative_velocity"],
-        alpha=0.8, label="relative v_rel = v_band − γ ẋ",
+        trajectory.time,
+        trajectory.relative_velocity,
+        lw=2.0,
+        color=style.COLOURS["relative_velocity"],
+        alpha=0.8,
+        label="relative v_rel = v_band − γ ẋ",
     )
     ax_v.plot(
         trajectory.time, trajectory.band_velocity, label="band v_band (dashed, on top)", **style.BAND_STYLE

@@ -44,9 +44,7 @@ def _hz_minor(value: float, _position: object = None) -> str:
     return f"{value:g}" if leading in (2.0, 5.0) else ""
 
 
-def frequency_limits(
-    freqs: np.ndarray, needed_hz: list[float]
-) -> tuple[float, float]:
+def frequency_limits(freqs: np.ndarray, needed_hz: list[float]) -> tuple[float, float]:
     """(lowest, highest) frequency shown: the analysed range cut one octave above what is needed."""
     low, high = float(freqs.min()), float(freqs.max())
     inside = [f for f in needed_hz if f and low <= f <= high]
@@ -55,9 +53,7 @@ def frequency_limits(
     return low, min(high, 2.0 * max(inside))
 
 
-def _place_marks(
-    marks_hz: dict[str, float], low: float, high: float
-) -> list[tuple[float, list[str], float]]:
+def _place_marks(marks_hz: dict[str, float], low: float, high: float) -> list[tuple[float, list[str], float]]:
     """Group marks whose labels would overlap: [(y axes fraction, names, frequency)], low to high."""
     span = np.log(high / low)
     placed: list[tuple[float, list[str], float]] = []
@@ -129,8 +125,14 @@ def wavelet_figure(
             ax_w.axhline(marks[name], color="w", ls="--" if name in ("f0", "f_band") else ":", lw=0.8)
         top = y > 1.0 - LABEL_GAP
         ax_w.text(
-            0.01, y, _mark_label(names, marks), transform=ax_w.transAxes, color="w",
-            va="top" if top else "bottom", ha="left", fontsize=style.MARK_SIZE,
+            0.01,
+            y,
+            _mark_label(names, marks),
+            transform=ax_w.transAxes,
+            color="w",
+            va="top" if top else "bottom",
+            ha="left",
+            fontsize=style.MARK_SIZE,
             bbox={"facecolor": "black", "alpha": 0.45, "pad": 1.0, "lw": 0},
         )
     ax_w.set_yscale("log")

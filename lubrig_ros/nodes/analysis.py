@@ -40,8 +40,15 @@ from . import common
 from .interfaces import create_publisher, create_subscription
 
 OUTPUTS = (
-    "dominant_frequency", "wavelet_power", "wavelet_image", "linear_zone", "critical_damping_ratio",
-    "oscillation_growing", "/diagnostics", "wavelet_frame", "stability",
+    "dominant_frequency",
+    "wavelet_power",
+    "wavelet_image",
+    "linear_zone",
+    "critical_damping_ratio",
+    "oscillation_growing",
+    "/diagnostics",
+    "wavelet_frame",
+    "stability",
 )
 OSCILLATION = {
     "unknown": StabilityFlags.OSCILLATION_UNKNOWN,
@@ -125,7 +132,10 @@ class Analysis(Node):
 
     def _on_state(self, msg: RigState) -> None:
         self.session.samples_input(
-            [msg.displacement], [msg.velocity], [msg.band_velocity], [msg.relative_velocity],
+            [msg.displacement],
+            [msg.velocity],
+            [msg.band_velocity],
+            [msg.relative_velocity],
             msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec,
         )
 

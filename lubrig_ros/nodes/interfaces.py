@@ -16,6 +16,8 @@ from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from lubrig_ros.core.errors import InputError
+
 from ..app import contract
 from ..app.contract import QoS
 
@@ -34,11 +36,11 @@ def message_class(msgtype: str) -> type:
     """The rclpy message (or service) class of "pkg/msg/Name" ("pkg/srv/Name")."""
     parts = msgtype.split("/")
     if len(parts) != 3:
-        raise ValueError(f"message type {msgtype!r} is invalid: expected pkg/msg/Name")
+        raise InputError(f"message type {msgtype!r} is invalid: expected pkg/msg/Name")
     try:
         return getattr(importlib.import_module(f"{parts[0]}.{parts[1]}"), parts[2])
     except (ImportError, AttributeError) as exc:
-        raise ValueError(f"message type {msgtype!r} is not installed") from exc
+        raise InputError(f"message type {msgtype!r} is not installed") from exc
 
 
 def create_publisher(node: Any, name: str) -> Any:

@@ -50,6 +50,7 @@ from lubrig_ros.app.contract import select_topics as _select_topics
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.recording import RecordingSession
 from lubrig_ros.bag.writer import BagWriter
+from lubrig_ros.core.errors import InputError
 from lubrig_ros.nodes.recorder_workers import PoolMessage, WorkerPool, sim_time_overrides, start_fork_server
 from lubrig_ros.nodes.script import bounded_teardown, run_script
 
@@ -262,24 +263,24 @@ def run(args: argparse.Namespace) -> int:
     """Record until SIGINT/SIGTERM or --duration; see the module docstring for exit codes."""
     specs = select_topics(args.namespace, args.topics)
     if args.workers < 0 or args.flush_interval <= 0:
-        raise ValueError(
+        raise InputError(
             f"--workers {args.workers} / --flush-interval {args.flush_interval}: "
             "expected workers >= 0 and flush interval > 0"
         )
     if not args.flush_period > 0 or args.flush_messages < 1:
-        raise ValueError(
+        raise InputError(
             f"--flush-period {args.flush_period} / --flush-messages {args.flush_messages}: "
             "expected seconds > 0 and messages >= 1"
         )
     if args.duration is not None and args.duration <= 0:
-        raise ValueError(f"--duration {args.duration} is invalid: expected seconds > 0")
+        raise InputError(f"--duration {args.duration} is invalid: expected seconds > 0")
     run_config = None
     if args.config is not None:
         run_config = args.config.read_text(encoding="utf-8")
         try:
             yaml.safe_load(run_config)
         except yaml.YAMLError as exc:
-            raise ValueError(f"--config {str(args.config)!r} is not valid YAML: {exc}") from exc
+            raise InputError(f"--config {str(args.config)!r} is not valid YAML: {exc}") from exc
     output = args.output or Path(time.strftime("lubrig_%Y%m%d_%H%M%S"))
     should_stop = [False]
 

@@ -26,6 +26,7 @@ from typing import Any
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, STREAM_QOS, documented_topics, resolve
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.reader import check_bag, read_messages
+from lubrig_ros.core.errors import InputError
 from lubrig_ros.nodes.script import run_script
 
 LEGACY_STATE = "sensor_msgs/msg/JointState"
@@ -56,25 +57,31 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--clock", action="store_true", help="publish /clock from the log times")
     p.add_argument("--namespace", default=DEFAULT_NAMESPACE, help="for relative --topics names")
     p.add_argument(
-        "--wait-for-subscribers", type=float, default=0.0, metavar="S",
+        "--wait-for-subscribers",
+        type=float,
+        default=0.0,
+        metavar="S",
         help="wait up to S seconds until every replayed topic has a subscriber",
     )
 
 
-def run(args: argparse.Namespace) -> int:
-    """Check the bag, then publish it; returns the exit status."""
+def _check_options(args: argparse.Namespace) -> None:
+    """InputError naming a bad --rate, --start or --wait-for-subscribers."""
     if not (math.isfinite(args.rate) and 0 < args.rate <= MAX_RATE):
-        raise ValueError(f"--rate {args.rate} is invalid: expected a time scale in (0, {MAX_RATE:g}]")
+        raise InputError(f"--rate {args.rate} is invalid: expected a time scale in (0, {MAX_RATE:g}]")
     if not (math.isfinite(args.start) and args.start >= 0):
-        raise ValueError(f"--start {args.start} is invalid: expected seconds >= 0")
+        raise InputError(f"--start {args.start} is invalid: expected seconds >= 0")
     if not (math.isfinite(args.wait_for_subscribers) and 0 <= args.wait_for_subscribers <= MAX_WAIT_S):
-        raise ValueError(
+        raise InputError(
             f"--wait-for-subscribers {args.wait_for_subscribers} is invalid: expected seconds in "
             f"[0, {MAX_WAIT_S:g}]"
         )
-    summary = check_bag(args.bag)
+
+
+def replayed_types(args: argparse.Namespace, summary: Any) -> dict[str, str]:
+    """Topic -> type of what is replayed (bag checked; InputError for what cannot be replayed)."""
     if args.start > 0 and args.start >= summary.duration_s:
-        raise ValueError(
+        raise InputError(
             f"--start {args.start:g} is invalid: the bag spans {summary.duration_s:g} s; expected "
             f"seconds in [0, {summary.duration_s:g})"
         )
@@ -83,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         wanted = [resolve(args.namespace, n) for n in args.topics]
         unknown = [n for n in wanted if n not in types]
         if unknown:
-            raise ValueError(
+            raise InputError(
                 f"--topics {', '.join(unknown)} not in bag; topics with messages: {', '.join(types)}"
             )
         types = {n: types[n] for n in wanted}
@@ -92,12 +99,20 @@ def run(args: argparse.Namespace) -> int:
     legacy = [name for name, msgtype in types.items() if msgtype == LEGACY_STATE and name.endswith("/state")]
     if legacy:
         others = [n for n in types if n not in legacy]
-        raise ValueError(
+        raise InputError(
             f"bag {str(args.bag)!r} has the legacy layout ({LEGACY_STATE} on {', '.join(legacy)}, "
             "recorded before lubrig_interfaces): the current nodes read lubrig_interfaces/msg/RigState "
             f"there, so it is not replayed; `lubrig report {args.bag}` still reads the bag"
             + (f"; replay its other topics with --topics {' '.join(others)}" if others else "")
         )
+    return types
+
+
+def run(args: argparse.Namespace) -> int:
+    """Check the bag, then publish it; returns the exit status."""
+    _check_options(args)
+    summary = check_bag(args.bag)
+    types = replayed_types(args, summary)
 
     import rclpy
     from rclpy.signals import SignalHandlerOptions

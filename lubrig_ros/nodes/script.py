@@ -21,9 +21,7 @@ TEARDOWN_S = 3.0
 
 
 @contextlib.contextmanager
-def bounded_teardown(
-    prog: str, status: Callable[[], int], seconds: float = TEARDOWN_S
-) -> Iterator[None]:
+def bounded_teardown(prog: str, status: Callable[[], int], seconds: float = TEARDOWN_S) -> Iterator[None]:
     """Run the enclosed teardown; after `seconds` unfinished, say so and end the process.
 
     The exit status is status(): the node's work is done and what it wrote is flushed. A hung

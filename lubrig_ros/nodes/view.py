@@ -34,6 +34,7 @@ from typing import Any
 from lubrig_ros.app import display, layouts
 from lubrig_ros.app.cdr import leading_stamp_ns
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, validate_namespace
+from lubrig_ros.core.errors import InputError
 from lubrig_ros.core.params import ParameterError
 
 DEFAULT_HOST = "127.0.0.1"
@@ -76,7 +77,7 @@ class MessageSchemas:
             path = prefix / "share" / pkg / "msg" / f"{name}.msg"
             if path.is_file():
                 return path
-        raise ValueError(f"message type {msgtype!r}: no {pkg}/msg/{name}.msg under {self.prefixes()}")
+        raise InputError(f"message type {msgtype!r}: no {pkg}/msg/{name}.msg under {self.prefixes()}")
 
     def text(self, msgtype: str) -> str:
         """The ros2msg schema text of `msgtype` ("pkg/msg/Name"); ValueError if it cannot be found."""
@@ -92,11 +93,11 @@ class MessageSchemas:
             except TypesysError as exc:
                 match = _UNKNOWN_TYPE.search(str(exc))
                 if not match:
-                    raise ValueError(f"message type {msgtype!r}: {exc}") from exc
+                    raise InputError(f"message type {msgtype!r}: {exc}") from exc
                 missing = match.group(1)
                 self._store.register(get_types_from_msg(self.msg_file(missing).read_text(), missing))
         else:
-            raise ValueError(f"message type {msgtype!r}: too many nested types")
+            raise InputError(f"message type {msgtype!r}: too many nested types")
         self._texts[msgtype] = text
         return text
 

@@ -47,17 +47,25 @@ def _recording_lines(recording: dict[str, Any]) -> list[str]:
     for name, s in streams.items():
         mark = "complete" if s["complete"] else "**INCOMPLETE**"
         skipped = f", {s['skipped']} skipped by the plant" if s.get("skipped") else ""
-        lines.append(f"- `{name}`: {s['samples']} samples, {s['missing']} missing, "
-                     f"{s['duplicates']} duplicates, {s['out_of_order']} out of order{skipped}: {mark}")
-        lines += [f"  - **gap**: {g['count']} samples from index {g['first_index']} of segment "
-                  f"{g['segment']} at rig time {g['rig_time_s']:.6f} s" for g in s["gaps"]]
+        lines.append(
+            f"- `{name}`: {s['samples']} samples, {s['missing']} missing, "
+            f"{s['duplicates']} duplicates, {s['out_of_order']} out of order{skipped}: {mark}"
+        )
+        lines += [
+            f"  - **gap**: {g['count']} samples from index {g['first_index']} of segment "
+            f"{g['segment']} at rig time {g['rig_time_s']:.6f} s"
+            for g in s["gaps"]
+        ]
         declared = s.get("declared_gaps", [])
-        lines += [f"  - declared gap: {g['count']} samples skipped from index {g['first_index']} of "
-                  f"segment {g['segment']} at rig time {g['rig_time_s']:.6f} s"
-                  for g in declared[:LISTED_GAPS]]
+        lines += [
+            f"  - declared gap: {g['count']} samples skipped from index {g['first_index']} of "
+            f"segment {g['segment']} at rig time {g['rig_time_s']:.6f} s"
+            for g in declared[:LISTED_GAPS]
+        ]
         if len(declared) > LISTED_GAPS:
-            lines.append(f"  - … and {len(declared) - LISTED_GAPS} more declared gaps "
-                         "(summary.json lists every one)")
+            lines.append(
+                f"  - … and {len(declared) - LISTED_GAPS} more declared gaps (summary.json lists every one)"
+            )
     return [*lines, ""]
 
 
@@ -71,16 +79,26 @@ def _timing_lines(timing: dict[str, Any]) -> list[str]:
         return []
     period = timing["sample_period_s"]
     gaps = timing["gaps"]
-    bound = ("stated by the plant" if timing["max_lag_source"] == "recording"
-             else "the plant's default: the bag does not state it")
+    bound = (
+        "stated by the plant"
+        if timing["max_lag_source"] == "recording"
+        else "the plant's default: the bag does not state it"
+    )
     rows = [
         (f"samples with lateness (segment {timing['segment']})", f"{timing['samples']}"),
-        ("lateness p50 / p99 / max", f"{_ms(timing['lateness_p50_s'])} / "
-                                      f"{_ms(timing['lateness_p99_s'])} / {_ms(timing['lateness_max_s'])}"),
-        (f"later than one period ({_ms(period)})",
-         f"{100.0 * timing['late_share']:.3g} % ({timing['late_samples']} samples)"),
-        ("skipped samples (declared gaps, listed under Recording)",
-         f"{timing['skipped_samples']} in {len(gaps)} gap(s)"),
+        (
+            "lateness p50 / p99 / max",
+            f"{_ms(timing['lateness_p50_s'])} / "
+            f"{_ms(timing['lateness_p99_s'])} / {_ms(timing['lateness_max_s'])}",
+        ),
+        (
+            f"later than one period ({_ms(period)})",
+            f"{100.0 * timing['late_share']:.3g} % ({timing['late_samples']} samples)",
+        ),
+        (
+            "skipped samples (declared gaps, listed under Recording)",
+            f"{timing['skipped_samples']} in {len(gaps)} gap(s)",
+        ),
         ("max_lag", f"{_ms(timing['max_lag_s'])} ({bound})"),
     ]
     lines = [
@@ -196,7 +214,10 @@ def write_report(bag: str | Path, out: str | Path, force: bool = False) -> Path:
     if run.timing is not None:
         summary["timing"] = dict(run.timing.summary(), figure=TIMING_FIGURE)
     analysis = analyze_displacement(
-        trajectory.time, trajectory.displacement, config.sample_rate, config.band.fundamental_hz,
+        trajectory.time,
+        trajectory.displacement,
+        config.sample_rate,
+        config.band.fundamental_hz,
         whole_record(),
     )
     summary = write_run_directory(out, config, trajectory, summary, analysis)

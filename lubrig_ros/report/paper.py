@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from lubrig_ros.core.errors import InputError
+
 from ..app.selection import base_config
 from ..app.study import STATEMENTS, Verdict, scorecard
 from ..app.study_runs import STICKSLIP, Metrics, case_metrics, rig_with_coupling, study_configs
@@ -179,7 +181,7 @@ def run_paper(
     from .html import write_html_page
 
     if not (np.isfinite(duration) and duration >= MIN_DURATION):
-        raise ValueError(f"--duration {duration!r} is not valid; expected at least {MIN_DURATION:g} s")
+        raise InputError(f"--duration {duration!r} is not valid; expected at least {MIN_DURATION:g} s")
     out = prepare_output_dir(Path(out), force, "--out", PAGE_OUTPUTS)
     done = [0.0]
 

@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
+from lubrig_ros.core.errors import InputError
+
 from .point import run_point, warm_up
 from .spec import Point, SweepSpec
 from .store import SweepStore
@@ -29,22 +31,20 @@ ADDRESS_PREFIXES = ("tcp://", "tls://", "inproc://", "ucx://")
 def check_scheduler(scheduler: str, workers: int | None) -> None:
     """Validate --scheduler and --workers before any work."""
     if scheduler not in (LOCAL, SERIAL) and not scheduler.startswith(ADDRESS_PREFIXES):
-        raise ValueError(
+        raise InputError(
             f"--scheduler {scheduler!r} is not valid; expected {LOCAL!r}, {SERIAL!r} or an address like tcp://host:8786"
         )
     if workers is not None:
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-            raise ValueError(f"--workers {workers!r} is not valid; expected an integer >= 1")
+            raise InputError(f"--workers {workers!r} is not valid; expected an integer >= 1")
         if scheduler not in (LOCAL,):
-            raise ValueError(f"--workers applies to --scheduler {LOCAL!r} only (got {scheduler!r})")
+            raise InputError(f"--workers applies to --scheduler {LOCAL!r} only (got {scheduler!r})")
 
 
 class Progress:
     """Progress lines on a stream (stderr): points done, rate, estimated time left."""
 
-    def __init__(
-        self, name: str, total: int, resumed: int, stream: TextIO | None, interval: float = 1.0
-    ):
+    def __init__(self, name: str, total: int, resumed: int, stream: TextIO | None, interval: float = 1.0):
         self.name, self.total, self.resumed = name, total, resumed
         self.stream, self.interval = stream, interval
         self.done = self.failed = 0
@@ -136,7 +136,7 @@ def _dask(
             try:
                 client.wait_for_workers(1, timeout=worker_timeout)
             except TimeoutError:
-                raise ValueError(
+                raise InputError(
                     f"no Dask worker joined {scheduler} within {worker_timeout:g} s; start one with "
                     f"`dask worker {scheduler} --nthreads 1` (or raise --worker-timeout)"
                 ) from None
@@ -205,9 +205,7 @@ def run_sweep(
             warm["serial"] = warm_up()
             records = _serial(pending, point_function)
         else:
-            records = _dask(
-                pending, scheduler, workers, warm, bar.restart, worker_timeout, point_function
-            )
+            records = _dask(pending, scheduler, workers, warm, bar.restart, worker_timeout, point_function)
         for record in records:
             store.write(record, run_id)
             failed += record["status"] != "ok"

@@ -22,6 +22,8 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from lubrig_ros.core.errors import InputError
+
 from ..app.fileio import write_text_atomic
 from .spec import SweepSpec
 
@@ -61,21 +63,21 @@ class SweepStore:
         """Refuse a directory holding something else, or a different sweep (no writes)."""
         d = self.directory
         if d.exists() and not d.is_dir():
-            raise ValueError(f"--out {str(d)!r} exists and is not a directory")
+            raise InputError(f"--out {str(d)!r} exists and is not a directory")
         if not d.is_dir() or not any(d.iterdir()):
             return
         state_path = d / STATE_FILE
         if not state_path.is_file():
-            raise ValueError(
+            raise InputError(
                 f"--out {str(d)!r} is a non-empty directory without {STATE_FILE}; "
                 "choose a new directory or an earlier sweep's directory to resume"
             )
         try:
             state = json.loads(state_path.read_text())
         except json.JSONDecodeError as exc:
-            raise ValueError(f"{state_path}: not valid JSON ({exc})") from None
+            raise InputError(f"{state_path}: not valid JSON ({exc})") from None
         if state.get("fingerprint") != self.spec.fingerprint:
-            raise ValueError(
+            raise InputError(
                 f"--out {str(d)!r} holds a different sweep (fingerprint {state.get('fingerprint')!r}, "
                 f"this spec {self.spec.fingerprint!r}); use a new directory"
             )
@@ -101,9 +103,7 @@ class SweepStore:
     def write(self, record: dict[str, Any], run_id: str) -> None:
         """Make one point's record durable, then journal it."""
         _write_atomic(self.points_dir / f"{record['point_id']}.json", json.dumps(record) + "\n")
-        self.journal(
-            {"event": "point", "point_id": record["point_id"], "status": record["status"]}, run_id
-        )
+        self.journal({"event": "point", "point_id": record["point_id"], "status": record["status"]}, run_id)
 
     def journal(self, entry: dict[str, Any], run_id: str) -> None:
         """Append one fsynced line to DIR/journal.jsonl."""

@@ -36,9 +36,24 @@ def start_long_rig(env: dict[str, str], run: Path, new_session: bool = False) ->
     import time
 
     launcher = subprocess.Popen(
-        [sys.executable, "-m", "lubrig_ros.cli.main", "rig", "--case", "1", "--duration", "600",
-         "--run-dir", str(run), "--no-report"],
-        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=new_session,
+        [
+            sys.executable,
+            "-m",
+            "lubrig_ros.cli.main",
+            "rig",
+            "--case",
+            "1",
+            "--duration",
+            "600",
+            "--run-dir",
+            str(run),
+            "--no-report",
+        ],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=new_session,
     )
     plant_log = run / "logs" / "plant.log"
     deadline = time.monotonic() + 180

@@ -41,15 +41,21 @@ DOMAIN_IDS = range(10, 100)
 LOCK_DIR = Path(tempfile.gettempdir()) / "lubrig_ros_domains"
 
 
-def wait_until(condition: Callable[[], object], timeout: float, what: str = "condition",
-               alive: tuple[NodeProcess, ...] = (), every: float = 0.02) -> None:
+def wait_until(
+    condition: Callable[[], object],
+    timeout: float,
+    what: str = "condition",
+    alive: tuple[NodeProcess, ...] = (),
+    every: float = 0.02,
+) -> None:
     """Poll condition every `every` s until true; AssertionError after timeout s or if a process dies."""
     end = time.monotonic() + timeout
     while not condition():
         for proc in alive:
             if proc.popen.poll() is not None:
-                raise AssertionError(f"{what}: {proc.name} exited with {proc.popen.returncode}:\n"
-                                     f"{proc.log()}")
+                raise AssertionError(
+                    f"{what}: {proc.name} exited with {proc.popen.returncode}:\n{proc.log()}"
+                )
         if time.monotonic() > end:
             raise AssertionError(f"{what}: not within {timeout} s")
         time.sleep(every)
@@ -100,8 +106,15 @@ def ros_env(domain: int) -> dict[str, str]:
 class NodeProcess:
     """A started process in its own session; stdout and stderr in files under log_dir."""
 
-    def __init__(self, name: str, argv: list[str], env: dict[str, str], log_dir: Path,
-                 cwd: str | Path | None = None, preexec_fn: Callable[[], None] | None = None) -> None:
+    def __init__(
+        self,
+        name: str,
+        argv: list[str],
+        env: dict[str, str],
+        log_dir: Path,
+        cwd: str | Path | None = None,
+        preexec_fn: Callable[[], None] | None = None,
+    ) -> None:
         self.name, self.argv = name, argv
         log_dir.mkdir(parents=True, exist_ok=True)
         stem = name
@@ -112,7 +125,12 @@ class NodeProcess:
         self.stdout_path, self.stderr_path = log_dir / f"{stem}.out", log_dir / f"{stem}.err"
         with open(self.stdout_path, "wb") as out, open(self.stderr_path, "wb") as err:
             self.popen = subprocess.Popen(
-                argv, env=env, cwd=cwd, stdout=out, stderr=err, start_new_session=True,
+                argv,
+                env=env,
+                cwd=cwd,
+                stdout=out,
+                stderr=err,
+                start_new_session=True,
                 preexec_fn=preexec_fn,
             )
 
@@ -142,11 +160,11 @@ class NodeProcess:
         end = time.monotonic() + timeout
         while text not in self.output():
             if self.popen.poll() is not None and text not in self.output():
-                raise AssertionError(f"{text!r} not printed by {self.argv} (exit "
-                                     f"{self.popen.returncode}):\n{self.log()}")
+                raise AssertionError(
+                    f"{text!r} not printed by {self.argv} (exit {self.popen.returncode}):\n{self.log()}"
+                )
             if time.monotonic() > end:
-                raise AssertionError(f"{text!r} not printed by {self.argv} within {timeout} s:\n"
-                                     f"{self.log()}")
+                raise AssertionError(f"{text!r} not printed by {self.argv} within {timeout} s:\n{self.log()}")
             time.sleep(0.02)
 
     def wait(self, timeout: float = 60.0) -> int:
@@ -193,9 +211,14 @@ class Processes:
         self.env, self.log_dir = env, Path(log_dir)
         self.started: dict[str, NodeProcess] = {}
 
-    def command(self, name: str, argv: list[str], env: dict[str, str] | None = None,
-                cwd: str | Path | None = None,
-                preexec_fn: Callable[[], None] | None = None) -> NodeProcess:
+    def command(
+        self,
+        name: str,
+        argv: list[str],
+        env: dict[str, str] | None = None,
+        cwd: str | Path | None = None,
+        preexec_fn: Callable[[], None] | None = None,
+    ) -> NodeProcess:
         """Start argv under a name (for logs and stop_all's status map)."""
         proc = NodeProcess(name, argv, self.env if env is None else env, self.log_dir, cwd, preexec_fn)
         key, k = name, 1
@@ -222,13 +245,15 @@ class Processes:
         """Start `python -m module args`."""
         return self.command(module.rsplit(".", 1)[-1], [PYTHON, "-m", module, *args], **kwargs)
 
-    def run_module(self, module: str, *args: str, timeout: float = 120.0,
-                   env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    def run_module(
+        self, module: str, *args: str, timeout: float = 120.0, env: dict[str, str] | None = None
+    ) -> subprocess.CompletedProcess[str]:
         """Run `python -m module args` to completion; output captured."""
         return run([PYTHON, "-m", module, *args], self.env if env is None else env, timeout)
 
-    def run_script(self, script: str, *args: str, timeout: float = 120.0,
-                   env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    def run_script(
+        self, script: str, *args: str, timeout: float = 120.0, env: dict[str, str] | None = None
+    ) -> subprocess.CompletedProcess[str]:
         """Run a console script of the venv to completion; output captured."""
         return run([str(BIN / script), *args], self.env if env is None else env, timeout)
 
@@ -273,8 +298,9 @@ def run(
     argv: list[str], env: dict[str, str] | None, timeout: float = 120.0
 ) -> subprocess.CompletedProcess[str]:
     """Run argv to completion in its own session; output captured; the group is killed on timeout."""
-    with subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                          start_new_session=True) as popen:
+    with subprocess.Popen(
+        argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    ) as popen:
         try:
             out, err = popen.communicate(timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -345,9 +371,7 @@ class Probe:
 
         block_name = contract.resolve(namespace, topic)
         qos = qos_profile(contract.BLOCK_QOS)
-        progress = self.node.create_publisher(
-            FlowProgress, contract.resolve(namespace, "flow_progress"), qos
-        )
+        progress = self.node.create_publisher(FlowProgress, contract.resolve(namespace, "flow_progress"), qos)
         participant = self.node.get_fully_qualified_name()
         state = {"ready": False, "segment": 0, "samples": 0}
         lock = threading.Lock()

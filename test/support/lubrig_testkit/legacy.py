@@ -20,8 +20,10 @@ def write_legacy_bag(path: Path, duration: float = 3.0, namespace: str = "/lubri
     config = load_case(1).with_overrides(duration=duration)
     traj = simulate(config)
     ts = typestore()
-    js, hdr, stamp = (ts.types[n] for n in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header",
-                                            "builtin_interfaces/msg/Time"))
+    js, hdr, stamp = (
+        ts.types[n]
+        for n in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header", "builtin_interfaces/msg/Time")
+    )
     f64 = ts.types["std_msgs/msg/Float64"]
     writer = BagWriter(path, run_config=config.to_yaml())
     writer.write(f"{namespace}/run_config", "std_msgs/msg/String", 0, serialize_string(config.to_yaml()))
@@ -29,14 +31,31 @@ def write_legacy_bag(path: Path, duration: float = 3.0, namespace: str = "/lubri
     for k, t in enumerate(traj.time):
         ns = round(float(t) * 1e9)
         sec, nsec = divmod(ns, 10**9)
-        state = js(hdr(stamp(sec, nsec), ""), ["mass"], np.array([traj.displacement[k]]),
-                   np.array([traj.velocity[k]]), np.array([traj.friction_coefficient[k] * normal]))
-        writer.write(f"{namespace}/state", "sensor_msgs/msg/JointState", ns,
-                     ts.serialize_cdr(state, "sensor_msgs/msg/JointState"))
-        writer.write(f"{namespace}/friction_coefficient", "std_msgs/msg/Float64", ns,
-                     ts.serialize_cdr(f64(float(traj.friction_coefficient[k])), "std_msgs/msg/Float64"))
+        state = js(
+            hdr(stamp(sec, nsec), ""),
+            ["mass"],
+            np.array([traj.displacement[k]]),
+            np.array([traj.velocity[k]]),
+            np.array([traj.friction_coefficient[k] * normal]),
+        )
+        writer.write(
+            f"{namespace}/state",
+            "sensor_msgs/msg/JointState",
+            ns,
+            ts.serialize_cdr(state, "sensor_msgs/msg/JointState"),
+        )
+        writer.write(
+            f"{namespace}/friction_coefficient",
+            "std_msgs/msg/Float64",
+            ns,
+            ts.serialize_cdr(f64(float(traj.friction_coefficient[k])), "std_msgs/msg/Float64"),
+        )
         if k:
-            writer.write(f"{namespace}/band_velocity", "std_msgs/msg/Float64", ns,
-                         ts.serialize_cdr(f64(float(traj.band_velocity[k])), "std_msgs/msg/Float64"))
+            writer.write(
+                f"{namespace}/band_velocity",
+                "std_msgs/msg/Float64",
+                ns,
+                ts.serialize_cdr(f64(float(traj.band_velocity[k])), "std_msgs/msg/Float64"),
+            )
     writer.close()
     return config, traj

@@ -20,8 +20,13 @@ SUMMARY = re.compile(r"(\d+) (passed|failed|error|errors|skipped|xfailed|xpassed
 
 
 def _pytest(args: list[str]) -> tuple[int, dict[str, int]]:
-    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", *args], text=True,
-                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, check=False)
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", *args],
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        check=False,
+    )
     sys.stdout.write(proc.stdout)
     sys.stdout.flush()
     counts: dict[str, int] = {}
@@ -52,8 +57,10 @@ def main(argv: list[str] | None = None) -> int:
     if not total.get("passed"):
         failed = True
     failed |= bool(total.get("failed") or total.get("error"))
-    print(f"{total.get('passed', 0)} passed, {total.get('failed', 0) + total.get('error', 0)} failed, "
-          f"{total.get('skipped', 0)} skipped")
+    print(
+        f"{total.get('passed', 0)} passed, {total.get('failed', 0) + total.get('error', 0)} failed, "
+        f"{total.get('skipped', 0)} skipped"
+    )
     return 1 if failed else 0
 
 

@@ -68,19 +68,22 @@ def publish(args: argparse.Namespace) -> int:
         node = rclpy.create_node("lubrig_synthetic_plant")
     docs = documented_topics(args.namespace)
     names = topics_of(args)
-    pubs = {n: node.create_publisher(message_class(docs[n].msgtype), n, qos_profile(docs[n].qos))
-            for n in names}
+    pubs = {
+        n: node.create_publisher(message_class(docs[n].msgtype), n, qos_profile(docs[n].qos)) for n in names
+    }
     progress_name = resolve(args.namespace, "flow_progress")
     consumer: dict[str, int] = {}
     executor = None
     if args.blocks and args.consumer:
+
         def on_progress(msg: object) -> None:
             if msg.participant == args.consumer:  # type: ignore[attr-defined]
                 consumer["samples"] = max(consumer.get("samples", 0), int(msg.samples))  # type: ignore[attr-defined]
 
         spec = docs[progress_name]
-        node.create_subscription(message_class(spec.msgtype), progress_name, on_progress,
-                                 qos_profile(spec.qos))
+        node.create_subscription(
+            message_class(spec.msgtype), progress_name, on_progress, qos_profile(spec.qos)
+        )
         executor = SingleThreadedExecutor()
         executor.add_node(node)
     waited = [p for n, p in pubs.items() if n != progress_name or not args.consumer]
@@ -160,8 +163,14 @@ def _publish_samples(args: argparse.Namespace, pubs: dict, skip: set[int]) -> di
     return counts
 
 
-def _publish_blocks(args: argparse.Namespace, node: object, pubs: dict, executor: object,
-                    consumer: dict[str, int], skip: set[int]) -> dict[str, int]:
+def _publish_blocks(
+    args: argparse.Namespace,
+    node: object,
+    pubs: dict,
+    executor: object,
+    consumer: dict[str, int],
+    skip: set[int],
+) -> dict[str, int]:
     from rclpy.duration import Duration
     from rosgraph_msgs.msg import Clock
 
@@ -246,9 +255,11 @@ def listen(args: argparse.Namespace) -> int:
     subs = []
     for name in args.topics:
         spec = docs[resolve(args.namespace, name)]
-        subs.append(node.create_subscription(
-            message_class(spec.msgtype), spec.name, make_cb(spec.name), qos_profile(spec.qos)
-        ))
+        subs.append(
+            node.create_subscription(
+                message_class(spec.msgtype), spec.name, make_cb(spec.name), qos_profile(spec.qos)
+            )
+        )
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     print("listening", flush=True)
@@ -270,8 +281,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     pp.add_argument("--namespace", default=DEFAULT_NAMESPACE)
     pp.add_argument("--rate", type=float, default=1000.0)
     pp.add_argument("--samples", type=int, default=3000)
-    pp.add_argument("--flow-control", type=int, default=0, metavar="N",
-                    help="unpaced; after every N samples wait until all subscribers acknowledged them")
+    pp.add_argument(
+        "--flow-control",
+        type=int,
+        default=0,
+        metavar="N",
+        help="unpaced; after every N samples wait until all subscribers acknowledged them",
+    )
     pp.add_argument("--scalars", action="store_true", help="also the Float64 scalar topics")
     pp.add_argument("--clock", action="store_true", help="also /clock (always with --blocks)")
     pp.add_argument("--blocks", type=int, default=0, metavar="N", help="sim layout, blocks of N samples")
