@@ -303,7 +303,11 @@ def test_intact_bag_passes_and_repair_leaves_it(matrix: dict, tmp_path: Path) ->
 
 @pytest.mark.parametrize("name", ["truncated_at_two_thirds", "flip_chunk_data", "empty_directory"])
 def test_console_script_one_line(matrix: dict, name: str) -> None:
-    """The console script itself (a fresh interpreter) on damaged bags: one line, exit status."""
+    """The console script itself (a fresh interpreter) on damaged bags: one line, exit status.
+
+    A damaged bag is a problem found (exit 1); a directory that is no bag at all is bad input
+    (exit 2, as `lubrig bag info`).
+    """
     bag = matrix["root"] / name / "bag"
     res = subprocess.run(
         [sys.executable, "-m", "lubrig_ros.cli.main", "bag", "check", str(bag)],
@@ -312,7 +316,9 @@ def test_console_script_one_line(matrix: dict, name: str) -> None:
         timeout=TIMEOUT,
         check=False,
     )
-    assert res.returncode == 1 and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    expected = 2 if "not a bag" in res.stderr else 1
+    assert name != "empty_directory" or expected == 2
+    assert res.returncode == expected and len(res.stderr.strip().splitlines()) == 1, res.stderr
     assert matrix["cases"][name][1] in res.stderr
 
 

@@ -80,7 +80,7 @@ def test_names_are_relative_except_the_ros_wide_topics():
         assert t.name.startswith("/") == (t.name in ("/clock", "/diagnostics")), t.name
     for s in contract.SERVICES:
         assert not s.name.startswith("/")
-    assert set(contract.PLANT_TOPICS) <= {t.name for t in contract.TOPICS}
+    assert set(contract.PER_SAMPLE_TOPICS) <= {t.name for t in contract.TOPICS}
 
 
 def test_documented_topics_follow_the_namespace():
