@@ -18,6 +18,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from lubrig_ros.app.cdr import float64_value
+from lubrig_ros.app.plant_output import BLOCK_FIELDS as BLOCK_FIELDS_OF_PLANT
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import RUN_CONFIG_KEY, find_mcap, typestore
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
@@ -220,15 +221,7 @@ class TopicArrays:
 
 
 #: Per-sample fields of lubrig_interfaces RigState (and the arrays of RigStateBlock), in order.
-RIG_STATE_FIELDS: tuple[str, ...] = (
-    "displacement",
-    "velocity",
-    "friction_coefficient",
-    "friction_force",
-    "band_velocity",
-    "relative_velocity",
-    "belt_travel",
-)
+RIG_STATE_FIELDS: tuple[str, ...] = BLOCK_FIELDS_OF_PLANT
 RIG_STATE = "lubrig_interfaces/msg/RigState"
 RIG_STATE_BLOCK = "lubrig_interfaces/msg/RigStateBlock"
 BAND_VELOCITY_BLOCK = "lubrig_interfaces/msg/BandVelocityBlock"
