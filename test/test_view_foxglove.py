@@ -232,9 +232,14 @@ def test_a_one_sample_slip_spike_survives_decimation(procs, probe):
     states = [m["message"] for m in messages if m["topic"] == f"{NS}/state"]
     indices = [s["sample_index"] for s in states]
     assert indices == sorted(indices) and len(states) >= 60
-    span = range(indices[0] + 1, indices[-1] + 1)
-    expected = [i for i in sorted(spikes) if i in span]
-    assert expected and [i for i in indices if i in spikes] == expected  # every spike, once
+    shown = [i for i in indices if i in spikes]
+    assert shown and len(shown) == len(set(shown))  # spikes shown, each once
+    # every display interval (between consecutive samples shown that are no spike) that holds a
+    # spike shows one: two in one interval (the wall-clock ceiling can stretch it) show one
+    plain = [i for i in indices if i not in spikes]
+    for a, b in itertools.pairwise(plain):
+        if any(a < k < b for k in spikes):
+            assert any(a < k < b for k in shown), (a, b)
     for s in states:
         if s["sample_index"] in spikes:
             assert s["velocity"] == 1e-3 and s["displacement"] == pytest.approx(1e-9 * s["sample_index"])
