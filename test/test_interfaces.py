@@ -19,6 +19,10 @@ from pathlib import Path
 
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
+from std_msgs.msg import Float64
+
+from lubrig_ros.app import cdr
+from lubrig_ros.core.errors import InputError
 
 pytestmark = pytest.mark.ros
 
@@ -147,6 +151,20 @@ def test_cdr_round_trip_is_equal(name):
     data = serialize_message(original)
     back = deserialize_message(data, getattr(msg, name))
     assert back == original  # (not byte-compared: rclpy leaves CDR padding bytes uninitialized)
+
+
+def test_the_plant_s_hand_serialized_rig_state_is_what_rclpy_reads():
+    original = rig_state()
+    original.header.frame_id = ""  # the plant's states carry no frame
+    encoder = cdr.StampedEncoder(msg.RigState.get_fields_and_field_types())
+    values = tuple(getattr(original, name) for name in encoder.names)
+    data = encoder.encode(original.header.stamp.sec, original.header.stamp.nanosec, values)
+    assert len(data) == len(serialize_message(original))
+    assert deserialize_message(data, msg.RigState) == original
+    with pytest.raises(InputError, match="fixed-size scalar"):
+        cdr.StampedEncoder(msg.RigStateBlock.get_fields_and_field_types())  # arrays: not for it
+    with pytest.raises(InputError, match="Header"):
+        cdr.StampedEncoder(Float64.get_fields_and_field_types())  # no header
 
 
 def test_block_arrays_keep_float64_precision_and_length():

@@ -48,6 +48,49 @@ def stamp_of(t: float) -> tuple[int, int]:
     return int(sec), min(round((t - sec) * 1e9), 999_999_999)
 
 
+#: CDR encapsulation header of little-endian plain CDR (what rclpy writes on this machine kind).
+LITTLE_ENDIAN_CDR = b"\x00\x01\x00\x00"
+#: struct format and size of each fixed-size scalar type rosidl names in get_fields_and_field_types().
+_SCALARS = {
+    "int32": ("i", 4),
+    "uint32": ("I", 4),
+    "int64": ("q", 8),
+    "uint64": ("Q", 8),
+    "double": ("d", 8),
+}
+
+
+class StampedEncoder:
+    """Serializes a message of a std_msgs/Header and fixed-size scalars with one struct.pack.
+
+    `fields` is the message class's get_fields_and_field_types() (names and types, in order):
+    the layout is derived from the interface, not written here. The header's frame_id is empty.
+    `encode(sec, nanosec, values)` returns the little-endian CDR payload, equal to rclpy's
+    serialize_message of the same message and publishable as it is (Publisher.publish(bytes)):
+    about a third of the cost of filling and publishing a message object, per message.
+    """
+
+    def __init__(self, fields: dict[str, str]) -> None:
+        items = list(fields.items())
+        if not items or items[0][1] != "std_msgs/Header":
+            raise InputError(f"a stamped message starts with a std_msgs/Header; got fields {items[:1]}")
+        fmt, pos = "<4siIIB", 13  # body: sec, nanosec, frame_id length 1, its NUL byte
+        for name, kind in items[1:]:
+            if kind not in _SCALARS:
+                raise InputError(
+                    f"field {name!r} of type {kind!r} is not a fixed-size scalar; valid: {list(_SCALARS)}"
+                )
+            code, size = _SCALARS[kind]
+            pad = -pos % size
+            fmt, pos = fmt + "x" * pad + code, pos + pad + size
+        self.names = tuple(name for name, _ in items[1:])  # the values encode() takes, in order
+        self._pack = struct.Struct(fmt).pack
+
+    def encode(self, sec: int, nanosec: int, values: tuple[float | int, ...]) -> bytes:
+        """The payload of the message with this stamp and these values (in `names` order)."""
+        return self._pack(LITTLE_ENDIAN_CDR, sec, nanosec, 1, 0, *values)
+
+
 _U32 = {1: struct.Struct("<I"), 0: struct.Struct(">I")}
 _U64 = {1: struct.Struct("<Q"), 0: struct.Struct(">Q")}
 _ALIGN_BASE = 4  # CDR alignment counts from the body, after the 4-byte encapsulation header

@@ -287,8 +287,8 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
             "bool",
             True,
             "realtime, rig_in_loop, lockstep: also publish one state (RigState) per sample, for rig "
-            "software in the loop; wall-clock modes: only while the topic has a subscriber (about "
-            "80 us per sample for the plant's loop)",
+            "software in the loop; wall-clock modes: only while the topic has a subscriber (each "
+            "costs the plant's loop CPU time: docs/benchmarks.md)",
         ),
         WAIT_FOR_SUBSCRIBER,
         _p(

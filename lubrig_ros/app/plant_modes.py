@@ -198,7 +198,7 @@ class SteppedRules(ModeRules):
             done.append(one)
         if not done:
             return Trajectory(**{name: np.zeros(0) for name, _ in Trajectory.COLUMNS})
-        return concatenate(done)
+        return Trajectory(*(np.array(column) for column in zip(*done, strict=True)))
 
 
 class LockstepRules(SteppedRules):

@@ -23,7 +23,7 @@ from ..core.integrator import RigIntegrator
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
 from ..core.run import integrator_for
-from ..core.trajectory import Trajectory
+from ..core.trajectory import Trajectory, TrajectorySample
 from .contract import (
     DEFAULT_LAG_POLICY,
     DEFAULT_MAX_LAG,
@@ -140,6 +140,11 @@ class PlantState:
         return float(self.integrator.time)
 
     @property
+    def normal_force(self) -> float:
+        """N of the run's configuration, N (friction force = μ · N)."""
+        return float(self.config.rig.friction.normal_force)
+
+    @property
     def period(self) -> float:
         """Sample period, s."""
         return 1.0 / self.config.sample_rate
@@ -151,7 +156,7 @@ class PlantState:
             return restart
 
     # ---- integration and output ----------------------------------------------------------
-    def advance(self, band: float, max_attempts: int | None = None) -> Trajectory | None:
+    def advance(self, band: float, max_attempts: int | None = None) -> TrajectorySample | None:
         """One sample, or None: unfinished (its step budget ran out) or failed (`fail`).
 
         With `max_attempts` (wall-clock ticks) an unfinished sample carries on at the next call
@@ -161,14 +166,14 @@ class PlantState:
         t_next = self.integrator.time + self.integrator.dt
         try:
             if max_attempts is None:
-                traj = self.integrator.advance(np.array([band]))
+                sample = self.integrator.advance(np.array([band])).sample(0)
             else:
                 bounded = self.integrator.advance_bounded(band, max_attempts)
                 if bounded is None:
                     return None
-                traj = bounded
-            if math.isfinite(traj.displacement[0]) and math.isfinite(traj.velocity[0]):
-                return traj
+                sample = bounded
+            if math.isfinite(sample.displacement) and math.isfinite(sample.velocity):
+                return sample
             problem = "non-finite state"
         except (ValueError, ArithmeticError, RuntimeError) as exc:
             problem = str(exc)
@@ -193,32 +198,29 @@ class PlantState:
         self.log("error", self.fault + "; no more output until a reset")
         self.on_failure(self.fault)
 
-    def emit(self, traj: Trajectory, lateness: float) -> None:
-        """Emit a one-sample trajectory (wall-clock modes): on_sample, and into the block buffer."""
-        x = float(traj.displacement[0])
-        v = float(traj.velocity[0])
-        mu = float(traj.friction_coefficient[0])
+    def emit(self, sample: TrajectorySample, lateness: float) -> None:
+        """Emit one sample (wall-clock modes): on_sample, and into the block buffer."""
+        t, x, v, mu, band, relative = sample
         if not (math.isfinite(x) and math.isfinite(v) and math.isfinite(mu)):
             return  # never published (cannot happen after advance's check; kept as the last guard)
-        t, band = float(traj.time[0]), float(traj.band_velocity[0])
-        force = mu * self.config.rig.friction.normal_force
-        sample = PlantSample(
+        out = PlantSample(
             t,
             x,
             v,
             mu,
             band,
             self.travel.add(t, band),
-            force,
-            float(traj.relative_velocity[0]),
+            mu * self.normal_force,
+            relative,
             self.published,
             self.segment,
         )
         self.published += 1
         self.lag = lateness
-        self.max_late = max(self.max_late, lateness)
-        self.on_sample(sample)
-        block = self.blocks.add(sample, lateness)
+        if lateness > self.max_late:
+            self.max_late = lateness
+        self.on_sample(out)
+        block = self.blocks.add(out, lateness)
         if block is not None:
             self.on_block(block)
 
@@ -248,7 +250,7 @@ class PlantState:
             displacement=traj.displacement,
             velocity=traj.velocity,
             friction_coefficient=traj.friction_coefficient,
-            friction_force=traj.friction_coefficient * self.config.rig.friction.normal_force,
+            friction_force=traj.friction_coefficient * self.normal_force,
             band_velocity=band,
             relative_velocity=traj.relative_velocity,
             belt_travel=self.travel.add_many(t, band),

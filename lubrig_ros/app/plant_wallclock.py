@@ -128,7 +128,7 @@ class WallClockRules(ModeRules):
     # ---- segment and pause ---------------------------------------------------------------
     @override
     def emit_initial(self) -> None:
-        self.s.emit(self.s.integrator.current(), 0.0)
+        self.s.emit(self.s.integrator.current().sample(0), 0.0)
 
     @override
     def reset(self) -> None:

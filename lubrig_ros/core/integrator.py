@@ -40,7 +40,7 @@ from .kernels import (
     specialize,
 )
 from .params import RigParameters
-from .trajectory import Trajectory
+from .trajectory import Trajectory, TrajectorySample
 
 
 class IntegrationError(LubrigError, RuntimeError):
@@ -67,6 +67,9 @@ class RigIntegrator:
     _fp: np.ndarray = field(init=False, repr=False)
     _stepper: Any = field(init=False, repr=False)
     _evaluator: Any = field(init=False, repr=False)
+    _atol: tuple[float, float] = field(init=False, repr=False)
+    _coupling: float = field(init=False, repr=False)  # γ
+    _one: tuple[np.ndarray, ...] = field(init=False, repr=False)  # advance_bounded's band, x, ẋ, v_rel
 
     def __post_init__(self) -> None:
         for name in ("initial_band_velocity", "sample_rate", "rtol", "initial_perturbation"):
@@ -90,6 +93,9 @@ class RigIntegrator:
         law = law_for(self.rig.friction)
         self._stepper, self._evaluator = specialize(law.kernel)  # compiled for this law, bound once
         self._fp = np.ascontiguousarray(law.pack(self.rig.friction), dtype=np.float64)
+        self._atol = self._scales
+        self._coupling = self.rig.velocity_factor
+        self._one = tuple(np.zeros(1) for _ in range(4))
         self.reset()
 
     @property
@@ -188,22 +194,36 @@ class RigIntegrator:
         time = t_start + self.dt * np.arange(1, band.size + 1)
         return self._sampled(time, out_x, out_w, band)
 
-    def advance_bounded(self, band_velocity: float, max_attempts: int) -> Trajectory | None:
+    def advance_bounded(self, band_velocity: float, max_attempts: int) -> TrajectorySample | None:
         """One sample with at most `max_attempts` step attempts; None when they ran out.
 
         A real-time plant cannot wait for a sample that needs thousands of substeps: it calls this
         once per tick and, on None, calls again at the next tick with the same band velocity, which
-        carries on where the last call stopped. The finished sample equals advance([band_velocity]).
+        carries on where the last call stopped. The finished sample equals advance([band_velocity])
+        bit for bit, returned as floats: the real-time tick's fast path, which computes in
+        preallocated one-sample buffers and makes no arrays per sample.
         """
         if max_attempts < 1:
             raise InputError(f"max_attempts={max_attempts!r} must be >= 1 step attempt")
-        band = self._band([band_velocity])
-        resumed = self.in_progress
-        t_start = self._state[PARTIAL_T0] if resumed else self._state[0]
-        out_x, out_w = self._run(band, max_attempts)
-        if self.in_progress:
+        band, out_x, out_w, relative = self._one
+        band[0] = band_velocity
+        if not math.isfinite(band[0]):
+            self._band(band)  # raises, naming the value
+        state = self._state
+        t_start = state[0] if math.isnan(state[PARTIAL_T0]) else state[PARTIAL_T0]
+        self._step(band, max_attempts, out_x, out_w)
+        if not math.isnan(state[PARTIAL_T0]):
             return None
-        return self._sampled(np.array([t_start + self.dt]), out_x, out_w, band)
+        relative[0] = band[0] - self._coupling * out_w[0]  # rig.relative_velocity, on floats
+        mu = self._evaluator(relative, self._fp)[0]
+        return TrajectorySample(
+            float(t_start + self.dt),
+            float(out_x[0]),
+            float(out_w[0]),
+            float(mu[0]),
+            float(band[0]),
+            float(relative[0]),
+        )
 
     def _band(self, band_velocities: np.typing.ArrayLike) -> np.ndarray:
         band = np.ascontiguousarray(band_velocities, dtype=np.float64).reshape(-1)
@@ -215,7 +235,12 @@ class RigIntegrator:
     def _run(self, band: np.ndarray, max_attempts: int) -> tuple[np.ndarray, np.ndarray]:
         out_x = np.empty(band.size)
         out_w = np.empty(band.size)
-        atol_x, atol_w = self._scales
+        done = self._step(band, max_attempts, out_x, out_w)
+        return out_x[:done], out_w[:done]
+
+    def _step(self, band: np.ndarray, max_attempts: int, out_x: np.ndarray, out_w: np.ndarray) -> int:
+        """The compiled stepper over `band` into out_x/out_w; the samples completed."""
+        atol_x, atol_w = self._atol
         self._state[BUDGET] = float(max_attempts)
         status = self._stepper(
             self._state,
@@ -238,8 +263,7 @@ class RigIntegrator:
                 f"step size collapsed at t={self._state[0]:.6g} s (rtol={self.rtol}); "
                 "the band velocity or rig parameters may be outside the model's range"
             )
-        done = int(self._state[COMPLETED])
-        return out_x[:done], out_w[:done]
+        return int(self._state[COMPLETED])
 
     def _sampled(self, time: np.ndarray, x: np.ndarray, w: np.ndarray, band: np.ndarray) -> Trajectory:
         relative = self.rig.relative_velocity(band, w)

@@ -7,10 +7,11 @@ Apart from the integrator (core.integrator re-exports both names) so that reader
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Trajectory", "concatenate"]
+__all__ = ["Trajectory", "TrajectorySample", "concatenate"]
 
 
 @dataclass
@@ -36,9 +37,28 @@ class Trajectory:
     def __len__(self) -> int:
         return int(self.time.size)
 
+    def sample(self, i: int) -> TrajectorySample:
+        """Sample i as floats."""
+        return TrajectorySample(*(float(getattr(self, name)[i]) for name, _ in self.COLUMNS))
+
     def as_columns(self) -> dict[str, np.ndarray]:
         """Arrays keyed by their CSV column names (with units)."""
         return {column: getattr(self, name) for name, column in self.COLUMNS}
+
+
+class TrajectorySample(NamedTuple):
+    """One sample of a Trajectory as floats (its columns, in order): what a real-time tick makes."""
+
+    time: float  # s
+    displacement: float  # x, m
+    velocity: float  # ẋ, m/s
+    friction_coefficient: float  # μ(v_rel)
+    band_velocity: float  # m/s
+    relative_velocity: float  # v_band − γ ẋ, m/s
+
+
+if TrajectorySample._fields != tuple(name for name, _ in Trajectory.COLUMNS):
+    raise ImportError("TrajectorySample's fields must be Trajectory.COLUMNS' names, in order")
 
 
 def concatenate(parts: list[Trajectory]) -> Trajectory:
