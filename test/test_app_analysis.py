@@ -20,7 +20,8 @@ from lubrig_ros.app.analysis import (
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate, summarize
 from lubrig_ros.core.trajectory import Trajectory
-from lubrig_ros.core.wavelet import cwt, dominant_components, fourier_factor
+from lubrig_ros.core.wavelet import cwt, fourier_factor
+from lubrig_ros.core.wavelet_components import dominant_components
 
 
 def test_run_directory_round_trips_bit_for_bit(tmp_path: Path) -> None:
