@@ -237,8 +237,9 @@ BAND_VELOCITY_BLOCK = "lubrig_interfaces/msg/BandVelocityBlock"
 BLOCK_FIELDS = {RIG_STATE_BLOCK: RIG_STATE_FIELDS, BAND_VELOCITY_BLOCK: ("band_velocity",)}
 
 
-def _stamp_s(stamp: object) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9  # type: ignore[attr-defined]
+def _stamp_s(stamp: Any) -> float:
+    seconds: float = stamp.sec + stamp.nanosec * 1e-9
+    return seconds
 
 
 def _block_samples(msgtype: str, msg: object) -> dict[str, np.ndarray]:
@@ -277,6 +278,11 @@ def _block_timing(msg: object, n: int) -> tuple[np.ndarray, np.ndarray]:
     return lateness, skipped
 
 
+def _first(values: Any) -> float:
+    """The first joint's value of a JointState array, NaN if it has none."""
+    return float(values[0]) if len(values) else np.nan
+
+
 def _decode(msgtype: str, data: bytes, store: Typestore) -> dict[str, object]:
     if msgtype == "std_msgs/msg/Float64" and len(data) >= 12 and data[1] == 1:
         return {"data": float64_value(data)}  # fast path; other encodings: rosbags below
@@ -290,12 +296,11 @@ def _decode(msgtype: str, data: bytes, store: Typestore) -> dict[str, object]:
         out.update({name: float(getattr(msg, name)) for name in RIG_STATE_FIELDS})
         return out
     if msgtype == "sensor_msgs/msg/JointState":
-        first = lambda arr: float(arr[0]) if len(arr) else np.nan  # noqa: E731
         return {
             "stamp": msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
-            "position": first(msg.position),
-            "velocity": first(msg.velocity),
-            "effort": first(msg.effort),
+            "position": _first(msg.position),
+            "velocity": _first(msg.velocity),
+            "effort": _first(msg.effort),
         }
     if msgtype == "rosgraph_msgs/msg/Clock":
         return {"clock": msg.clock.sec + msg.clock.nanosec * 1e-9}

@@ -164,7 +164,8 @@ class OnlineWaveletAnalyzer:
         hankel = np.ascontiguousarray(np.lib.stride_tricks.sliding_window_view(padded, k))
         both = self._kernel[:, : n + k - 1] @ hankel
         re, im = both[:j].astype(float), both[j:].astype(float)
-        return re * re + im * im
+        power: np.ndarray = re * re + im * im
+        return power
 
     def push(
         self,

@@ -127,7 +127,7 @@ def daughter_fft(scales: np.ndarray, n_fft: int, dt: float, omega0: float = OMEG
     omega = 2.0 * math.pi * k / (n_fft * dt)
     s = np.asarray(scales, dtype=float)[:, None]
     norm = np.sqrt(2.0 * math.pi * s / dt) * math.pi**-0.25
-    psi = norm * np.exp(-0.5 * (s * omega[None, :] - omega0) ** 2)
+    psi: np.ndarray = norm * np.exp(-0.5 * (s * omega[None, :] - omega0) ** 2)
     psi[:, 0] = 0.0
     return psi
 
@@ -183,18 +183,20 @@ def significance_level(
         raise InputError(f"level={level!r} is not valid; expected a confidence level in (0, 1)")
     background = red_noise_spectrum(periods, dt, lag1)
     if n_average is None:
-        return background * chdtri(2.0, 1.0 - level) / 2.0
+        single: np.ndarray = background * chdtri(2.0, 1.0 - level) / 2.0
+        return single
     scales = np.asarray(periods, dtype=float) / fourier_factor()
     n_avg = np.maximum(np.asarray(n_average, dtype=float), 1.0)
     dof = 2.0 * np.sqrt(1.0 + (n_avg * dt / (GAMMA_TIME * scales)) ** 2)
-    return background * chdtri(dof, 1.0 - level) / dof
+    averaged: np.ndarray = background * chdtri(dof, 1.0 - level) / dof
+    return averaged
 
 
 def cone_of_influence(n: int, dt: float) -> np.ndarray:
     """Largest Fourier period (s) free of edge effects at each sample: √2 s e-folding from ends."""
     idx = np.arange(n, dtype=float)
     distance = np.minimum(idx, n - 1 - idx)
-    coi = fourier_factor() / math.sqrt(2.0) * dt * distance
+    coi: np.ndarray = fourier_factor() / math.sqrt(2.0) * dt * distance
     coi[coi == 0.0] = 1e-5 * dt  # TC mark the end points as (almost) zero
     return coi
 
@@ -231,7 +233,8 @@ class WaveletResult:
     @property
     def significance_ratio(self) -> np.ndarray:
         """Power over its significance level: > 1 is significant at `level`."""
-        return self.power / self.significance[:, None]
+        ratio: np.ndarray = self.power / self.significance[:, None]
+        return ratio
 
     def global_peak(self) -> tuple[float, float]:
         """(frequency in Hz, normalized power) of the largest global-spectrum value."""
