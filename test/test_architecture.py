@@ -4,7 +4,8 @@ Tiers: core 0, app 1, bag + figures 2, nodes + report + sweep 3, cli 4 (modules 
 lubrig_ros/, e.g. its __init__ with __version__, count as tier 0). A module may import its own
 subpackage and lower tiers, never a higher tier and never a same-tier sibling package; no
 import cycle between modules; core and app import no ROS package. Every import counts, also
-those inside functions (a lazy import still ties the two modules together).
+those inside functions (a lazy import still ties the two modules together). No module holds
+more than MAX_MODULE_LINES lines.
 """
 
 from __future__ import annotations
@@ -186,3 +187,15 @@ def test_no_expected_violation_left() -> None:
 
 def test_core_and_app_are_ros_free() -> None:
     assert not ros_imports(), sorted(ros_imports())
+
+
+#: Lines a module of the package may hold: past this it holds more than one job.
+MAX_MODULE_LINES = 500
+
+
+def test_no_module_over_the_size_limit() -> None:
+    """Every module of the package stays within MAX_MODULE_LINES lines."""
+    sizes = {path.relative_to(ROOT): len(path.read_text().splitlines()) for path in ROOT.rglob("*.py")}
+    assert sizes, ROOT
+    over = {str(path): n for path, n in sorted(sizes.items()) if n > MAX_MODULE_LINES}
+    assert not over, f"modules over {MAX_MODULE_LINES} lines: {over}"

@@ -1,13 +1,14 @@
 """Figures checked by what they show: labels with units, colormaps, text boxes, axis bounds, data.
 
 Text overlap is measured on the drawn figure with matplotlib's renderer extents
-(figures.style.overlapping_texts), so a label printed on top of another fails here.
+(lubrig_testkit.figures.overlapping_texts), so a label printed on top of another fails here.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from lubrig_testkit.figures import colormap_names, overlapping_texts, texts_outside
 from matplotlib.collections import PathCollection, QuadMesh
 
 from lubrig_ros.app.analysis import DEFAULT_POLICY, analyze_displacement
@@ -47,8 +48,8 @@ def stickslip() -> tuple[RunConfig, object]:
 
 
 def _check_text(fig: object) -> None:
-    assert style.overlapping_texts(fig) == []
-    assert style.texts_outside(fig) == []
+    assert overlapping_texts(fig) == []
+    assert texts_outside(fig) == []
 
 
 def _check_units(fig: object) -> None:
@@ -70,7 +71,7 @@ def test_run_figures_text_units_colormaps_title(
     fig = FIGURES[name](traj, config.name, config.rig.convention, config.rig)
     _check_text(fig)
     _check_units(fig)
-    assert style.colormap_names(fig) <= style.UNIFORM_CMAPS
+    assert colormap_names(fig) <= style.UNIFORM_CMAPS
     title = fig.axes[0].get_title()
     number = int(config.name[4:])
     assert f"case {number}," in title and config.rig.coupling_label in title, title
@@ -136,7 +137,7 @@ def test_mu_velocity_trajectory_lies_on_the_friction_law(which: str, request: py
     assert lo < xy[:, 0].min() and xy[:, 0].max() < hi
     assert ax.get_ylim()[0] < xy[:, 1].min() and xy[:, 1].max() < ax.get_ylim()[1]
     assert "signed" in ax.get_ylabel() and "v_rel" in ax.get_xlabel()
-    assert style.colormap_names(fig) == {style.TIME_CMAP}
+    assert colormap_names(fig) == {style.TIME_CMAP}
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
     # zones shaded where the axis reaches them: case 1 spans the minimum (zones 2 and 3)
     peak, minimum = friction_peak(config.rig.friction), friction_minimum(config.rig.friction)

@@ -49,7 +49,7 @@ def test_law_parameters_names_the_valid_laws_for_an_unknown_one() -> None:
 
 
 def test_local_maxima_are_find_peaks() -> None:
-    """core.wavelet.local_maxima (no scipy.signal import) finds what scipy.signal.find_peaks finds.
+    """core.wavelet_components.local_maxima (no scipy.signal import) finds what scipy.signal.find_peaks finds.
 
     Random arrays of 0-40 values, half of them small integers so that flat tops (plateaus, of
     even and odd length, at the ends too) are common.
@@ -57,7 +57,7 @@ def test_local_maxima_are_find_peaks() -> None:
     import numpy as np
     from scipy.signal import find_peaks
 
-    from lubrig_ros.core.wavelet import local_maxima
+    from lubrig_ros.core.wavelet_components import local_maxima
 
     rng = np.random.default_rng(12)
     for trial in range(5000):

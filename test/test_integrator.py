@@ -8,6 +8,15 @@ from scipy.integrate import solve_ivp
 
 from lubrig_ros.core.friction import friction_coefficient, friction_slope
 from lubrig_ros.core.integrator import RigIntegrator
+from lubrig_ros.core.kernels import (
+    RIG_DAMPING,
+    RIG_LAYOUT,
+    RIG_MASS,
+    RIG_NORMAL_FORCE,
+    RIG_SIZE,
+    RIG_STIFFNESS,
+    RIG_VELOCITY_FACTOR,
+)
 from lubrig_ros.core.params import FrictionParameters, RigParameters
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.profiles import ConstantBand
@@ -77,6 +86,24 @@ def test_energy_conserved_without_friction_and_damping():
     energy = 0.5 * rig.mass * traj.velocity**2 + 0.5 * rig.stiffness * traj.displacement**2
     e0 = 0.5 * rig.stiffness * 1e-16
     assert np.max(np.abs(energy / e0 - 1)) < 1e-7
+
+
+@pytest.mark.parametrize("case", [1, 4])
+def test_rig_array_is_laid_out_as_the_kernel_reads_it(case):
+    """The rig array the stepper reads holds each RigParameters attribute at its named index."""
+    config = load_case(case)
+    rig_array = integrator_for(config)._rig_array
+    assert rig_array.shape == (RIG_SIZE,) and rig_array.dtype == np.float64
+    named = (RIG_MASS, RIG_DAMPING, RIG_STIFFNESS, RIG_VELOCITY_FACTOR, RIG_NORMAL_FORCE)
+    assert [RIG_LAYOUT[i] for i in named] == [
+        "mass",
+        "damping",
+        "stiffness",
+        "velocity_factor",
+        "normal_force",
+    ]
+    for index, name in enumerate(RIG_LAYOUT):
+        assert rig_array[index] == getattr(config.rig, name), name
 
 
 def test_two_runs_bit_identical():

@@ -20,7 +20,7 @@ from std_msgs.msg import Float64
 from lubrig_ros.bag import BagWriter, check_bag, read_arrays
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
-from lubrig_ros.core.wavelet import dominant_frequencies
+from lubrig_ros.core.wavelet_components import dominant_frequencies
 
 DURATION = 6.0
 SCALE_STEP = 2 ** (1 / 12)  # one wavelet scale step (dj = 1/12 octave)

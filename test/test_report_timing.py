@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from lubrig_testkit.figures import overlapping_texts, texts_outside
 from matplotlib.image import imread
 
 import lubrig_ros.bag.layout as layout
@@ -252,8 +253,8 @@ def test_timing_figure_reads_with_many_gaps_and_with_none() -> None:
         timing = rig_timing(0, period, index, late, skip)
         assert timing is not None
         fig = timing_figure(timing, style.run_title("case01", "paper", "Realtime timing"))
-        assert style.overlapping_texts(fig) == []
-        assert style.texts_outside(fig) == []
+        assert overlapping_texts(fig) == []
+        assert texts_outside(fig) == []
         stems = [c for c in fig.axes[2].collections if c.get_segments()]
         assert sum(len(c.get_segments()) for c in stems) == int(np.count_nonzero(skip))
     assert rig_timing(0, period, index, np.full(n, np.nan), skipped) is None

@@ -12,11 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from lubrig_testkit.cli import lubrig
+from lubrig_testkit.figures import plotted_range
 from matplotlib.image import imread
 
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
-from lubrig_ros.figures.timeseries import FIGURES, plotted_range
+from lubrig_ros.figures.timeseries import FIGURES
 
 LUBRIG = [sys.executable, "-m", "lubrig_ros.cli.main"]
 HEADER = "time_s,displacement_m,velocity_m_s,friction_coefficient,band_velocity_m_s,relative_velocity_m_s"

@@ -11,7 +11,8 @@ import pytest
 from lubrig_ros.core.presets import config_dir, load_case, load_config
 from lubrig_ros.core.profiles import ConstantBand
 from lubrig_ros.core.run import simulate, summarize
-from lubrig_ros.core.wavelet import cwt, dominant_frequencies
+from lubrig_ros.core.wavelet import cwt
+from lubrig_ros.core.wavelet_components import dominant_frequencies
 
 DT = 1e-3
 

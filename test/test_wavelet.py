@@ -6,14 +6,12 @@ import numpy as np
 import pytest
 import pywt
 
-from lubrig_ros.core.wavelet import (
-    cwt,
+from lubrig_ros.core.wavelet import cwt, fourier_factor, scale_grid
+from lubrig_ros.core.wavelet_components import (
     dominant_components,
     dominant_frequencies,
-    fourier_factor,
     harmonic_label,
     ridge,
-    scale_grid,
 )
 
 DT = 1e-3

@@ -286,8 +286,3 @@ def _event(event: Event | None) -> dict[str, Any] | None:
     if event is None:
         return None
     return {"segment": event.segment, "index": event.index, "rig_time_s": event.rig_time_ns / 1e9}
-
-
-def format_counts(accounts: dict[str, StreamAccount]) -> str:
-    """``topic=samples`` per stream, e.g. for the recorder's last line."""
-    return ", ".join(f"{name}={a.samples}" for name, a in accounts.items())

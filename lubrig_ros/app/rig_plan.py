@@ -62,11 +62,6 @@ class NodeLaunch:
     #: nodes whose start lines this one waits for before it starts
     after: tuple[str, ...] = ()
 
-    @property
-    def ready_line(self) -> str:
-        """What the node prints once it is set up."""
-        return READY_LINES[self.name]
-
 
 @dataclass(frozen=True)
 class RigPlan:

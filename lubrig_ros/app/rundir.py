@@ -140,12 +140,6 @@ def read_timeseries(directory: Path, columns: Sequence[str] = CSV_COLUMNS) -> di
     return {name: data[:, i] for i, name in enumerate(columns)}
 
 
-def read_trajectory(directory: Path) -> Trajectory:
-    """The Trajectory stored in timeseries.csv (inverse of write_timeseries)."""
-    arrays = read_timeseries(directory)
-    return Trajectory(**{name: arrays[column] for name, column in Trajectory.COLUMNS})
-
-
 def update_summary(directory: Path, key: str, section: Any) -> dict[str, Any]:
     """Set summary[key] = section in summary.json (other keys kept); return the new summary."""
     summary = read_summary(directory)

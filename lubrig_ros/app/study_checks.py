@@ -46,7 +46,8 @@ def amplitude_text(m: dict[str, Any]) -> str:
 
 
 def _mu_within(m: dict[str, Any], low: float, high: float) -> bool:
-    return m["mu_min"] >= low and m["mu_max"] <= high
+    within: bool = m["mu_min"] >= low and m["mu_max"] <= high
+    return within
 
 
 # --- statement checks -------------------------------------------------------------------------

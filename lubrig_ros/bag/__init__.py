@@ -2,6 +2,7 @@
 
 Public API:
 
+- :class:`Bag` — a bag read once: its check, summary, messages and arrays from one walk of the file.
 - :class:`BagWriter` — write serialized CDR messages with log times; ``flush()``; ``close()``.
 - :func:`check_bag` / :func:`bag_info` — full integrity check and summary (topics, counts, duration,
   custom_data with the run configuration).
@@ -14,6 +15,7 @@ Public API:
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import RUN_CONFIG_KEY, VERSION_KEY, find_mcap
 from lubrig_ros.bag.reader import (
+    Bag,
     BagSummary,
     TopicArrays,
     TopicSummary,
@@ -28,6 +30,7 @@ from lubrig_ros.bag.writer import BagWriter
 __all__ = [
     "RUN_CONFIG_KEY",
     "VERSION_KEY",
+    "Bag",
     "BagError",
     "BagSummary",
     "BagWriter",

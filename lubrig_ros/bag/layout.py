@@ -128,7 +128,7 @@ def typestore() -> Typestore:
     global _TYPESTORE
     if _TYPESTORE is None:
         store = get_typestore(Stores(f"ros2_{PINNED_ROS_DISTRO}"))
-        types: dict = {}
+        types: dict[str, Any] = {}
         for name, text in interface_definitions().items():
             types.update(get_types_from_msg(text, name))
         store.register(types)

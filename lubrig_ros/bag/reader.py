@@ -1,5 +1,9 @@
 """Reading bags: integrity check, summary (`bag info`), messages, numpy arrays per topic.
 
+:class:`Bag` reads a bag once: one walk of the file gives its check, its summary and the
+messages a command reads (`lubrig report`); the functions below read the bag each time they are
+called.
+
 The one bag reader: messages come from the MCAP file's own channels and schemas
 (lubrig_ros.bag.mcapscan over lubrig_ros.bag.frames), never through metadata.yaml, so a
 metadata.yaml that describes a channel differently cannot make a stream disappear; the check
@@ -8,7 +12,7 @@ before reading (check_bag) names such a metadata.yaml as damage.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,10 +24,11 @@ from rosbags.typesys.store import Typestore
 from lubrig_ros.app.cdr import float64_value
 from lubrig_ros.app.plant_output import BLOCK_FIELDS as BLOCK_FIELDS_OF_PLANT
 from lubrig_ros.bag.errors import BagError
+from lubrig_ros.bag.findings import Verification
 from lubrig_ros.bag.layout import RUN_CONFIG_KEY, find_mcap, typestore
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
 from lubrig_ros.bag.meta import SCHEMA_ENCODING
-from lubrig_ros.bag.verify import verify_bag
+from lubrig_ros.bag.verify import inspect_bag, refusal, verify_bag
 
 
 @dataclass
@@ -87,7 +92,11 @@ def check_bag(bag: str | Path) -> BagSummary:
     Every chunk (CRC), the index, the summary and metadata.yaml against the file, every field
     (lubrig_ros.bag.verify); the summary's topics, counts and times are the file's own.
     """
-    v = verify_bag(bag, full=True, continuity=False)
+    return _summary(verify_bag(bag, full=True, continuity=False), bag)
+
+
+def _summary(v: Verification, bag: str | Path) -> BagSummary:
+    """The summary of a verified bag; BagError naming its first structural problem."""
     if v.structural:
         first = v.structural[0]
         if "does not exist" in first.text or "not a bag" in first.text:
@@ -228,8 +237,9 @@ BAND_VELOCITY_BLOCK = "lubrig_interfaces/msg/BandVelocityBlock"
 BLOCK_FIELDS = {RIG_STATE_BLOCK: RIG_STATE_FIELDS, BAND_VELOCITY_BLOCK: ("band_velocity",)}
 
 
-def _stamp_s(stamp: object) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9  # type: ignore[attr-defined]
+def _stamp_s(stamp: Any) -> float:
+    seconds: float = stamp.sec + stamp.nanosec * 1e-9
+    return seconds
 
 
 def _block_samples(msgtype: str, msg: object) -> dict[str, np.ndarray]:
@@ -268,6 +278,11 @@ def _block_timing(msg: object, n: int) -> tuple[np.ndarray, np.ndarray]:
     return lateness, skipped
 
 
+def _first(values: Any) -> float:
+    """The first joint's value of a JointState array, NaN if it has none."""
+    return float(values[0]) if len(values) else np.nan
+
+
 def _decode(msgtype: str, data: bytes, store: Typestore) -> dict[str, object]:
     if msgtype == "std_msgs/msg/Float64" and len(data) >= 12 and data[1] == 1:
         return {"data": float64_value(data)}  # fast path; other encodings: rosbags below
@@ -281,12 +296,11 @@ def _decode(msgtype: str, data: bytes, store: Typestore) -> dict[str, object]:
         out.update({name: float(getattr(msg, name)) for name in RIG_STATE_FIELDS})
         return out
     if msgtype == "sensor_msgs/msg/JointState":
-        first = lambda arr: float(arr[0]) if len(arr) else np.nan  # noqa: E731
         return {
             "stamp": msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
-            "position": first(msg.position),
-            "velocity": first(msg.velocity),
-            "effort": first(msg.effort),
+            "position": _first(msg.position),
+            "velocity": _first(msg.velocity),
+            "effort": _first(msg.effort),
         }
     if msgtype == "rosgraph_msgs/msg/Clock":
         return {"clock": msg.clock.sec + msg.clock.nanosec * 1e-9}
@@ -307,11 +321,16 @@ def read_arrays(bag: str | Path, topics: Iterable[str] | None = None) -> dict[st
     ``stamp``, ``position``, ``velocity``, ``effort`` (first joint); Clock gives ``clock`` (s);
     other types give ``message`` (an object array of rosbags messages).
     """
+    return _to_arrays(bag, stream_messages(bag, topics))
+
+
+def _to_arrays(bag: str | Path, messages: Iterable[tuple[Stream, int, bytes]]) -> dict[str, TopicArrays]:
+    """read_arrays of messages (stream, log time, payload) in log-time order; bag names the bag."""
     times: dict[str, list[int]] = {}
     values: dict[str, dict[str, list[object]]] = {}
     types: dict[str, str] = {}
     blocks: dict[str, list[tuple[int, dict[str, np.ndarray]]]] = {}
-    for stream, t, data in stream_messages(bag, topics):
+    for stream, t, data in messages:
         topic, msgtype = stream.topic, stream.msgtype
         types[topic] = msgtype
         try:
@@ -341,3 +360,66 @@ def read_arrays(bag: str | Path, topics: Iterable[str] | None = None) -> dict[st
         log = np.concatenate([t / 1e9 + (cols["stamp"] - cols["stamp"][:1]) for t, cols in parts])
         out[topic] = TopicArrays(types[topic], log, joined)
     return out
+
+
+def _every(_topic: str) -> bool:
+    return True
+
+
+class Bag:
+    """A bag read once: its check, its summary and the messages of the topics a command reads.
+
+    Opening it walks the .mcap file once (lubrig_ros.bag.verify.inspect_bag: every chunk's CRC,
+    the index, the summary and metadata.yaml against the file; not the samples' continuity) and
+    keeps the payloads of the topics `keep` accepts (default: all). The summary, the refusal of a
+    damaged bag, the messages and their arrays all come from that walk: `lubrig report` reads its
+    bag once. Messages are read from the file's own channels, as read_messages does.
+    """
+
+    def __init__(self, bag: str | Path, keep: Callable[[str], bool] | None = None) -> None:
+        self.path = Path(bag)
+        self.keep = keep or _every
+        self.verification, state = inspect_bag(bag, full=True, continuity=False, keep=self.keep)
+        self._streams = {
+            cid: Stream(ch.topic, state.msgtype(cid), state.schemas.get(ch.schema_id))
+            for cid, ch in state.channels.items()
+        }
+        self._messages = state.messages
+        self._arrays: dict[frozenset[str] | None, dict[str, TopicArrays]] = {}
+
+    def refuse_damaged(self, command: str) -> None:
+        """BagError in one line if the file is damaged (as verify.refuse_damaged; gaps are not damage)."""
+        problem = refusal(self.verification, command)
+        if problem is not None:
+            raise problem
+
+    def summary(self) -> BagSummary:
+        """What check_bag gives: topics, counts, times, custom_data; BagError if the file is damaged."""
+        return _summary(self.verification, self.path)
+
+    def messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[Stream, int, bytes]]:
+        """(stream, log_time_ns, cdr_bytes) in log-time order (ties in file order), as stream_messages.
+
+        BagError if the file is damaged. topics: only these; each must be one `keep` accepts.
+        """
+        if self.verification.structural:
+            raise BagError(f"{self.verification.verdict()}; run `lubrig bag repair {self.path}`")
+        wanted = set(topics) if topics is not None else None
+        dropped = sorted(t for t in wanted or () if not self.keep(t))
+        if dropped:
+            raise ValueError(f"topics {dropped} were not kept when the bag was opened")
+        kept = [
+            (t, self._streams[cid], data)
+            for t, cid, data in self._messages
+            if wanted is None or self._streams[cid].topic in wanted
+        ]
+        kept.sort(key=lambda item: item[0])  # stable: ties keep their order in the file
+        for t, stream, data in kept:
+            yield stream, t, data
+
+    def arrays(self, topics: Iterable[str] | None = None) -> dict[str, TopicArrays]:
+        """read_arrays of the topics (default: every kept one), decoded once per set of topics."""
+        key = frozenset(topics) if topics is not None else None
+        if key not in self._arrays:
+            self._arrays[key] = _to_arrays(self.path, self.messages(key))
+        return self._arrays[key]

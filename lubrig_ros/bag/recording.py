@@ -33,9 +33,9 @@ from lubrig_ros.app.cdr import INDEXED_TYPES, leading_stamp_ns, sample_span
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, Topic, documented_topics, resolve
 from lubrig_ros.app.fileio import write_text_atomic
 from lubrig_ros.bag.errors import BagError
-from lubrig_ros.bag.layout import ACCOUNTING_SIDECAR, cdr_string
+from lubrig_ros.bag.layout import ACCOUNTING_SIDECAR, cdr_string, typestore
 from lubrig_ros.bag.repair import repair_bag
-from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, serialize_string, typestore
+from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, serialize_string
 
 #: With use_sim_time, an unstamped message waits at most this long (receive time) for /clock.
 SIM_HOLD_NS = 300_000_000

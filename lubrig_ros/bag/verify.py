@@ -29,6 +29,7 @@ Nothing here raises for a damaged file: every failure is a :class:`Problem`.
 from __future__ import annotations
 
 import mmap
+from collections.abc import Callable
 from pathlib import Path
 
 from lubrig_ros.bag.continuity import INDEXED_TYPES, SPACED_TYPES, check_continuity
@@ -47,6 +48,8 @@ __all__ = [
     "Problem",
     "StreamReport",
     "Verification",
+    "inspect_bag",
+    "refusal",
     "refuse_damaged",
     "verify_bag",
 ]
@@ -58,12 +61,19 @@ def refuse_damaged(bag: str | Path, command: str) -> None:
     Everything of the file (CRCs, index, summary, footer, metadata.yaml), not the continuity of
     the samples (a bag with gaps is reported on; `lubrig bag info` shows them).
     """
-    v = verify_bag(bag, full=True, continuity=False)
-    if v.structural:
-        first = v.structural[0]
-        if "does not exist" in first.text or "not a bag" in first.text:
-            raise BagError(first.text)  # the command's own error line names the command
-        raise BagError(f"{v.verdict()}; {command} refuses it: run `lubrig bag repair {bag}` first")
+    problem = refusal(verify_bag(bag, full=True, continuity=False), command)
+    if problem is not None:
+        raise problem
+
+
+def refusal(v: Verification, command: str) -> BagError | None:
+    """The one-line BagError a command refusing a damaged bag raises (None: v has no structural problem)."""
+    if not v.structural:
+        return None
+    first = v.structural[0]
+    if "does not exist" in first.text or "not a bag" in first.text:
+        return BagError(first.text)  # the command's own error line names the command
+    return BagError(f"{v.verdict()}; {command} refuses it: run `lubrig bag repair {v.bag}` first")
 
 
 def _directory(v: Verification) -> bool:
@@ -97,29 +107,40 @@ def verify_bag(bag: str | Path, full: bool = True, continuity: bool = True) -> V
     full=False: no chunk is decompressed (frames, chunk headers, summary, footer, metadata.yaml);
     continuity=False: everything of the file, not the samples' continuity.
     """
+    return inspect_bag(bag, full, continuity)[0]
+
+
+def inspect_bag(
+    bag: str | Path, full: bool = True, continuity: bool = True, keep: Callable[[str], bool] | None = None
+) -> tuple[Verification, ScanState]:
+    """verify_bag, and what its one walk of the file collected (ScanState).
+
+    With `keep` (full only) the walk keeps the payload of every message on a topic keep(topic)
+    accepts (ScanState.messages), so a reader needs no second pass (lubrig_ros.bag.reader.Bag).
+    """
     v = Verification(Path(bag), full=full)
+    st = ScanState(keep_samples=full and continuity, keep=keep if full else None)
     if not _directory(v):
-        return v
+        return v, st
     try:
         v.mcap = find_mcap(v.bag)
     except BagError as exc:
         v.add(str(exc))
-        return v
+        return v, st
     try:
         with open(v.mcap, "rb") as f:
             size = f.seek(0, 2)
             if size == 0:
                 v.add("the .mcap file is empty", 0)
-                return v
+                return v, st
             with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as buf:
-                st = ScanState(keep_samples=full and continuity)
                 data_end = walk(v, buf, size, st, full)
                 if data_end is not None:
                     check_summary(v, buf, size, data_end, st)
         _conclude(v, st, full, continuity)
     except OSError as exc:
         v.add(f"cannot read {str(v.mcap)!r}: {exc.strerror or exc}")
-    return v
+    return v, st
 
 
 def _conclude(v: Verification, st: ScanState, full: bool, continuity: bool) -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import mmap
 import struct
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from lubrig_ros.bag.continuity import declares_skip, skipped_of
@@ -86,6 +87,22 @@ class ScanState:
     declares: dict[int, bool] = field(default_factory=dict)
     #: (channel id, position in samples[cid]) -> RigStateBlock.skipped when not 0
     skipped: dict[tuple[int, int], int] = field(default_factory=dict)
+    #: the topics whose messages the walk keeps whole (None: none), for a reader that reads the
+    #: file once (lubrig_ros.bag.reader.Bag)
+    keep: Callable[[str], bool] | None = None
+    #: channel id -> keep(its topic), decided at its first message
+    keeps: dict[int, bool] = field(default_factory=dict)
+    #: (log time, channel id, payload) of every kept message, in file order
+    messages: list[tuple[int, int, bytes]] = field(default_factory=list)
+
+    def keep_message(self, cid: int, t: int, payload: bytes | memoryview) -> None:
+        """Keep a message's payload if its topic is one the caller reads (keep, not None)."""
+        assert self.keep is not None
+        if cid not in self.keeps:
+            topic = self.topic(cid)
+            self.keeps[cid] = topic is not None and self.keep(topic)
+        if self.keeps[cid]:
+            self.messages.append((t, cid, bytes(payload)))
 
     def topics_of(self, cids: object) -> str | None:
         """The topics of channel ids cids, comma-separated (None if none is known)."""
@@ -180,6 +197,8 @@ def _outer_record(v: Verification, b: Body, op: int, off: int, st: ScanState) ->
         cid, _seq, t, _pub = message_header(b)
         if cid not in st.channels:
             v.add(f"message on undefined channel {cid}", off)
+        if st.keep is not None:
+            st.keep_message(cid, t, b.buf[b.pos : b.end])
         st.counts[cid] = st.counts.get(cid, 0) + 1
         st.index_counts[cid] = st.index_counts.get(cid, 0) + 1
         st.start, st.end = min(st.start, t), max(st.end, t)
@@ -262,6 +281,8 @@ def _inner_record(
             v.add(f"message on undefined channel {cid} inside the chunk", off)
         chunk.messages.setdefault(cid, set()).add((t, roff))
         st.counts[cid] = st.counts.get(cid, 0) + 1
+        if st.keep is not None:
+            st.keep_message(cid, t, raw[r0 + MESSAGE_HEADER_BYTES : r1])
         if st.keep_samples:
             # the leading fields are enough (header, indices, the first array's length);
             # a block's declared skip comes after its arrays: read now

@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import argparse
 
-from lubrig_ros.bag.verify import refuse_damaged
+from lubrig_ros.bag.reader import Bag
 from lubrig_ros.core.errors import InputError
 from lubrig_ros.nodes import replay
 
 
 def _run(args: argparse.Namespace) -> int:
     try:
-        refuse_damaged(args.bag, "lubrig replay")  # the cheap part of `lubrig bag check` first
-        return replay.run(args)
+        bag = Bag(args.bag)  # read once: its check (not continuity) first, then what is published
+        bag.refuse_damaged("lubrig replay")
+        return replay.run(args, bag)
     except replay.BagError as exc:
         raise InputError(str(exc)) from exc
 

@@ -9,8 +9,7 @@ from lubrig_ros.core.errors import InputError
 
 from ..app.rundir import prepare_output_dir
 from ..bag.errors import BagError
-from ..bag.verify import refuse_damaged
-from ..report import write_report
+from ..report import open_bag, write_report
 from .common import add_force
 
 
@@ -19,11 +18,12 @@ def run(args: argparse.Namespace) -> int:
     bag = Path(args.bag)
     out = Path(args.out) if args.out else bag.parent / "report"
     prepare_output_dir(out, args.force)  # refuses a non-empty --out first; removes nothing
-    try:  # the cheap part of `lubrig bag check` first: a damaged bag is refused in one line
-        refuse_damaged(bag, "lubrig report")
+    source = open_bag(bag)  # the one read of the bag: its check and the messages reported on
+    try:  # `lubrig bag check` but continuity, first: a damaged bag is refused in one line
+        source.refuse_damaged("lubrig report")
     except BagError as exc:
         raise InputError(str(exc)) from None
-    page = write_report(bag, out, force=args.force)
+    page = write_report(source, out, force=args.force)
     print(f"report: {page}")
     return 0
 

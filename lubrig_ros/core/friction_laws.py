@@ -60,17 +60,6 @@ class CurveLandmark:
     mu: float
 
 
-class LawParameters(Protocol):
-    """What the rest of the core needs from a law's parameter set (a frozen dataclass)."""
-
-    law: ClassVar[str]
-
-    @property
-    def normal_force(self) -> float:
-        """N in N: the rig's friction force is N μ."""
-        ...
-
-
 @runtime_checkable
 class FrictionLaw(Protocol):
     """A friction law: μ(v) and dμ/dv, its compiled kernel and its optional landmarks."""
@@ -143,10 +132,6 @@ class KernelLaw:
 
         return evaluate_law(self.kernel, velocity, self.pack(params))
 
-    def slope_at(self, velocity: float, params: Any) -> float:
-        """dμ/dv at one velocity."""
-        return float(self.evaluate(np.array([velocity]), params)[1][0])
-
     def landmark(self, params: Any, low: float, high: float) -> CurveLandmark | None:
         """The stationary point of μ between low and high (m/s) if the slope changes sign there."""
         from scipy.optimize import brentq
@@ -209,11 +194,6 @@ def register_law(law: FrictionLaw) -> FrictionLaw:
         raise InputError(f"friction law {name!r} is already registered")
     _REGISTRY[name] = law
     return law
-
-
-def unregister_law(name: str) -> None:
-    """Remove a law added by register_law (for tests of extension laws)."""
-    _REGISTRY.pop(name, None)
 
 
 def law_names() -> list[str]:

@@ -120,7 +120,7 @@ def _scaled_mu_and_slope(v: float, p: np.ndarray) -> tuple[float, float]:
 
 @law_kernel
 def mu_and_slope(v: float, p: np.ndarray) -> tuple[float, float]:
-    """μ(v) and dμ/dv for one velocity; p is FrictionParameters.as_array() as float64 array.
+    """μ(v) and dμ/dv for one velocity; p is the law's pack(params): FrictionParameters' fields in order.
 
     μ is odd and dμ/dv even; at v = 0 the slope is +inf (μ ∝ |v|^(1+k2) there).
     """

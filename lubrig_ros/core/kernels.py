@@ -100,6 +100,12 @@ STEP_TOO_SMALL = 1
 #: The call's step budget (state[BUDGET]) ran out inside a sample; the next call resumes it.
 BUDGET_SPENT = 2
 
+#: Layout of the rig array the stepper reads (float64 array of RIG_SIZE, SI units): the index of
+#: each RigParameters attribute of RIG_LAYOUT (the integrator builds the array in this order).
+RIG_MASS, RIG_DAMPING, RIG_STIFFNESS, RIG_VELOCITY_FACTOR, RIG_NORMAL_FORCE = 0, 1, 2, 3, 4
+RIG_LAYOUT = ("mass", "damping", "stiffness", "velocity_factor", "normal_force")
+RIG_SIZE = len(RIG_LAYOUT)
+
 #: Layout of the stepper state (float64 array of STATE_SIZE).
 T, X, W, BAND, H, SUBSTEPS = 0, 1, 2, 3, 4, 5
 BUDGET = 6  # step attempts allowed in one call, accepted or rejected (0: unlimited)
@@ -159,7 +165,8 @@ def _radau_step_py(  # noqa: C901
 
     work (8x3) and jac (3x3) are scratch space, allocated once per advance() call.
     """
-    mass, damp, stiff, gamma, normal = rig[0], rig[1], rig[2], rig[3], rig[4]
+    mass, damp, stiff = rig[RIG_MASS], rig[RIG_DAMPING], rig[RIG_STIFFNESS]
+    gamma, normal = rig[RIG_VELOCITY_FACTOR], rig[RIG_NORMAL_FORCE]
     slope_vb = (vb1 - vb0) / dt
     vb, wst, g, gw, res, delta, zx, zw = (
         work[0],

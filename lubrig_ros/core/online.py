@@ -28,16 +28,15 @@ from .flags import StabilityFlags, evaluate_flags
 from .params import RigParameters
 from .wavelet import (
     MIN_SAMPLES,
-    Component,
     WaveletResult,
-    _check_dt,
     build_result,
+    check_dt,
     daughter_fft,
-    dominant_components,
     fourier_factor,
     padded_length,
     transform_coefficients,
 )
+from .wavelet_components import Component, dominant_components
 
 #: New columns per update up to which direct kernels are used (above it: take them from the FFT).
 #: The direct product costs J × (window + k) × k; at the analysis node's defaults (window 2048,
@@ -82,7 +81,7 @@ class OnlineWaveletAnalyzer:
         rig: RigParameters | None = None,
         t0: float = 0.0,
     ) -> None:
-        self.dt = _check_dt(dt)
+        self.dt = check_dt(dt)
         if not isinstance(window, (int, np.integer)) or window < MIN_SAMPLES:
             raise InputError(f"window={window!r} is not valid; expected an integer >= {MIN_SAMPLES}")
         if not isinstance(n_scales, (int, np.integer)) or n_scales < 2:
@@ -165,7 +164,8 @@ class OnlineWaveletAnalyzer:
         hankel = np.ascontiguousarray(np.lib.stride_tricks.sliding_window_view(padded, k))
         both = self._kernel[:, : n + k - 1] @ hankel
         re, im = both[:j].astype(float), both[j:].astype(float)
-        return re * re + im * im
+        power: np.ndarray = re * re + im * im
+        return power
 
     def push(
         self,

@@ -102,10 +102,6 @@ class FrictionParameters:
             return replace(self, contact_area=CONTACT_AREA_CHOICES[choice])
         return replace(self, contact_area=choice)
 
-    def as_array(self) -> tuple[float, ...]:
-        """Parameters in the fixed order the compiled kernels expect."""
-        return tuple(getattr(self, f.name) for f in fields(self))
-
 
 @dataclass(frozen=True)
 class StribeckParameters:

@@ -111,7 +111,8 @@ class RunConfig:
 
     def to_yaml(self) -> str:
         """The full configuration as YAML text (stored with every run)."""
-        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+        text: str = yaml.safe_dump(self.to_dict(), sort_keys=False)
+        return text
 
     def with_overrides(self, **changes: Any) -> RunConfig:
         """Copy with rig fields (convention, damping_ratio, ...) or run fields replaced."""

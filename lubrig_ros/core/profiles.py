@@ -279,7 +279,8 @@ class TableBand:
 
     def __call__(self, time: np.typing.ArrayLike) -> np.ndarray:
         """v_band(t) in m/s for t in s."""
-        return np.interp(np.asarray(time, dtype=float), self.times, self.velocities)
+        velocity: np.ndarray = np.interp(np.asarray(time, dtype=float), self.times, self.velocities)
+        return velocity
 
     def verdict_velocities(self) -> tuple[float, ...]:
         """The lowest table velocity > 0 (a profile starting from rest has 0 among them)."""
@@ -290,7 +291,8 @@ class TableBand:
     def from_mapping(cls, data: dict[str, Any], base_dir: Path | None = None) -> TableBand:
         """{path: CSV} (relative to base_dir) or {times: [...], velocities: [...], source: ...}."""
         if "path" not in data:
-            return _from_fields(cls, data)
+            table: TableBand = _from_fields(cls, data)
+            return table
         data = dict(data)
         path = Path(data.pop("path"))
         if base_dir is not None and not path.is_absolute():
@@ -359,8 +361,10 @@ def profile_from_dict(data: dict[str, Any], base_dir: Path | None = None) -> Ban
     cls = profile_class(data.pop("kind", None))
     reader: Callable[..., Any] | None = getattr(cls, "from_mapping", None)
     if reader is not None:
-        return reader(data, base_dir=base_dir)
-    return _from_fields(cls, data)
+        read: BandProfile = reader(data, base_dir=base_dir)
+        return read
+    built: BandProfile = _from_fields(cls, data)
+    return built
 
 
 def profile_to_dict(profile: BandProfile) -> dict[str, Any]:
@@ -464,7 +468,7 @@ class ProfileParameters:
             targets = (kind,) if kind in self.owners[name] else self.owners[name]
             for owner in targets:
                 staged[owner][name] = value
-        profile = _from_node_values(cls, staged[kind], self.initial)
+        profile: BandProfile = _from_node_values(cls, staged[kind], self.initial)
         self._values, self.kind, self.profile = staged, kind, profile
         return profile
 

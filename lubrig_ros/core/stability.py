@@ -45,7 +45,8 @@ class LinearStability:
 
 def _coupling(rig: RigParameters) -> float:
     """ω0 γ N / k: multiplies μ' in the effective damping."""
-    return rig.angular_frequency * rig.velocity_factor * rig.friction.normal_force / rig.stiffness
+    coupling: float = rig.angular_frequency * rig.velocity_factor * rig.friction.normal_force / rig.stiffness
+    return coupling
 
 
 def _effective(damping_ratio: float | np.ndarray, rig: RigParameters, slope: float | np.ndarray) -> Any:
@@ -61,7 +62,8 @@ def _critical(rig: RigParameters, slope: float | np.ndarray) -> Any:
 def equilibrium_displacement(band_velocity: np.typing.ArrayLike, rig: RigParameters) -> np.ndarray:
     """Static equilibrium x0 = μ(v_band) N / k in m."""
     mu = friction_coefficient(band_velocity, rig.friction)
-    return mu * rig.friction.normal_force / rig.stiffness
+    x0: np.ndarray = mu * rig.friction.normal_force / rig.stiffness
+    return x0
 
 
 def friction_zone(band_velocity: np.typing.ArrayLike, rig: RigParameters) -> np.ndarray:
@@ -79,7 +81,8 @@ def friction_zone(band_velocity: np.typing.ArrayLike, rig: RigParameters) -> np.
 
 def critical_damping_ratio(band_velocity: np.typing.ArrayLike, rig: RigParameters) -> np.ndarray:
     """ζ_crit(v_band) = max(0, −ω0 γ N μ'/(2k)): damping above it stabilizes the equilibrium."""
-    return _critical(rig, friction_slope(band_velocity, rig.friction))
+    zeta_crit: np.ndarray = _critical(rig, friction_slope(band_velocity, rig.friction))
+    return zeta_crit
 
 
 def linear_stability(band_velocity: float, rig: RigParameters) -> LinearStability:
@@ -121,7 +124,8 @@ def unstable_intervals(
     v = np.logspace(np.log10(v_min), np.log10(v_max), int(decades * points_per_decade) + 1)
 
     def effective(velocity: float | np.ndarray) -> np.ndarray:
-        return _effective(damping_ratio, rig, friction_slope(velocity, rig.friction))
+        value: np.ndarray = _effective(damping_ratio, rig, friction_slope(velocity, rig.friction))
+        return value
 
     unstable = effective(v) <= 0.0
 
@@ -153,4 +157,5 @@ def stability_map(band_velocities: np.ndarray, damping_ratios: np.ndarray, rig: 
     """Boolean grid [ζ, v_band]: True where the equilibrium is linearly stable."""
     slope = friction_slope(np.asarray(band_velocities, dtype=float), rig.friction)
     zeta = np.asarray(damping_ratios, dtype=float)[:, None]
-    return _effective(zeta, rig, slope[None, :]) > 0.0
+    stable: np.ndarray = _effective(zeta, rig, slope[None, :]) > 0.0
+    return stable

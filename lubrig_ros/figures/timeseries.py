@@ -250,9 +250,3 @@ def write_run_figures(
         make(trajectory, name, convention, rig).savefig(Path(out) / filename, dpi=style.DPI)
         paths.append(Path(out) / filename)
     return paths
-
-
-def plotted_range(fig: Figure, axis: int = 0) -> tuple[float, float]:
-    """Min and max of the y data drawn on one axes (for checks of figure content)."""
-    ys = np.concatenate([line.get_ydata() for line in fig.axes[axis].get_lines()])
-    return float(np.min(ys)), float(np.max(ys))

@@ -25,7 +25,7 @@ from typing import Any
 
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, STREAM_QOS, documented_topics, resolve
 from lubrig_ros.bag.errors import BagError
-from lubrig_ros.bag.reader import check_bag, read_messages
+from lubrig_ros.bag.reader import Bag
 from lubrig_ros.core.errors import InputError
 from lubrig_ros.nodes.script import run_script
 
@@ -108,10 +108,16 @@ def replayed_types(args: argparse.Namespace, summary: Any) -> dict[str, str]:
     return types
 
 
-def run(args: argparse.Namespace) -> int:
-    """Check the bag, then publish it; returns the exit status."""
+def run(args: argparse.Namespace, bag: Bag | None = None) -> int:
+    """Check the bag, then publish it; returns the exit status.
+
+    bag: the bag args.bag already read (`lubrig replay` checks it first); else it is read here.
+    The file is read once, however often --loop publishes it.
+    """
     _check_options(args)
-    summary = check_bag(args.bag)
+    if bag is None:
+        bag = Bag(args.bag)
+    summary = bag.summary()
     types = replayed_types(args, summary)
 
     import rclpy
@@ -149,7 +155,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         while not stop[0]:
             t0 = time.monotonic()
-            for topic, _type, t, data in read_messages(args.bag, list(pubs)):
+            for stream, t, data in bag.messages(list(pubs)):
+                topic = stream.topic
                 if stop[0]:
                     break
                 if t < first:

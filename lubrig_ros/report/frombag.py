@@ -14,9 +14,11 @@ segment's times start where the one before ended, as the recorder's log times an
 a realtime plant with the wall clock (its due times, about 1.8e9 s), whose rig time is due time −
 segment start = sample_index · sample_period, 0 at each segment's start (`rig_times`).
 
-`read_run` reads a bag once (one integrity check, one decoding pass) and gives everything the
-report needs: configuration, trajectory, the sample accounting and, for a realtime recording,
-its timing (app/lateness.py); `trajectory_from_bag` and `recording_summary` are its parts.
+`read_run` reads a bag once (a lubrig_ros.bag.Bag: one walk of the file for its integrity check
+and the messages, one decoding pass) and gives everything the report needs: configuration,
+trajectory, the sample accounting and, for a realtime recording, its timing (app/lateness.py);
+`trajectory_from_bag` and `recording_summary` are its parts. `open_bag` opens a bag with the
+topics the report reads, so a caller can refuse a damaged bag and report on it from one read.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from lubrig_ros.core.errors import LubrigError
 from ..app.accounting import StreamAccount
 from ..app.contract import DEFAULT_NAMESPACE, resolve, validate_namespace
 from ..app.lateness import RigTiming, rig_timing
-from ..bag import BagError, BagSummary, TopicArrays, bag_info, read_arrays
+from ..bag import Bag, BagError, BagSummary, TopicArrays
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
 from ..core.trajectory import Trajectory
@@ -55,10 +57,20 @@ class ReportError(LubrigError, ValueError):
     """The bag cannot be turned into a report; the message is one user-facing line."""
 
 
-def _info(bag: str | Path) -> BagSummary:
+def _reads(topic: str) -> bool:
+    """A topic the report reads, under any namespace (the namespace is known once the bag is read)."""
+    return topic == DIAGNOSTICS or topic.rsplit("/", 1)[-1] in (STATE, STATE_BLOCK, FRICTION, BAND)
+
+
+def open_bag(bag: str | Path | Bag) -> Bag:
+    """The bag read once with the topics the report reads (a Bag is returned as it is)."""
+    return bag if isinstance(bag, Bag) else Bag(bag, keep=_reads)
+
+
+def _info(bag: Bag) -> BagSummary:
     """The bag's summary after its full integrity check; ReportError naming the problem."""
     try:
-        return bag_info(bag)
+        return bag.summary()
     except BagError as exc:
         raise ReportError(str(exc)) from None
 
@@ -97,7 +109,7 @@ def _namespace(bag: str | Path, info: BagSummary) -> str:
         raise ReportError(f"bag {str(bag)!r}: {exc}") from None
 
 
-def _state_arrays(bag: str | Path, namespace: str) -> tuple[str, TopicArrays, dict[str, TopicArrays]]:
+def _state_arrays(bag: Bag, namespace: str) -> tuple[str, TopicArrays, dict[str, TopicArrays]]:
     """(state topic, its arrays, all arrays read) for the first state topic of STATE_TOPICS found.
 
     One decoding pass over the bag: the state topics, the legacy layout's Float64 topics and
@@ -108,7 +120,7 @@ def _state_arrays(bag: str | Path, namespace: str) -> tuple[str, TopicArrays, di
     except ValueError as exc:
         raise ReportError(str(exc)) from None
     try:
-        arrays = read_arrays(bag, [*names.values(), DIAGNOSTICS])
+        arrays = bag.arrays([*names.values(), DIAGNOSTICS])
     except BagError as exc:
         raise ReportError(str(exc)) from None
     for name, msgtype in STATE_TOPICS:
@@ -120,22 +132,23 @@ def _state_arrays(bag: str | Path, namespace: str) -> tuple[str, TopicArrays, di
         if held is not None and held.t.size:
             readable = ", ".join(f"{n} {t}" for n, t in STATE_TOPICS)
             raise ReportError(
-                f"bag {str(bag)!r}: {names[name]} holds {held.t.size} {held.msgtype} messages, a type the "
-                f"report cannot read as rig states (readable: {readable})"
+                f"bag {str(bag.path)!r}: {names[name]} holds {held.t.size} {held.msgtype} messages, "
+                f"a type the report cannot read as rig states (readable: {readable})"
             )
     return names[STATE], TopicArrays("", np.zeros(0), {}), arrays
 
 
-def stream_accounts(bag: str | Path, namespace: str | None = None) -> dict[str, StreamAccount]:
+def stream_accounts(bag: str | Path | Bag, namespace: str | None = None) -> dict[str, StreamAccount]:
     """Sample accounting (app/accounting.py) of the bag's indexed streams, from the bag alone.
 
     The state stream (state_block or RigState state) in log-time order; legacy bags (no sample
     index) give {}.
     """
+    bag = open_bag(bag)
     info = _info(bag)
-    namespace = _namespace(bag, info) if namespace is None else namespace
+    namespace = _namespace(bag.path, info) if namespace is None else namespace
     try:
-        rate: float | None = _config(bag, info).sample_rate
+        rate: float | None = _config(bag.path, info).sample_rate
     except ReportError:  # no usable configuration: rig_times takes the period from the stamps
         rate = None
     topic, state, _arrays = _state_arrays(bag, namespace)
@@ -169,7 +182,7 @@ def _recording(accounts: dict[str, StreamAccount]) -> dict[str, Any]:
     }
 
 
-def recording_summary(bag: str | Path, namespace: str | None = None) -> dict[str, Any]:
+def recording_summary(bag: str | Path | Bag, namespace: str | None = None) -> dict[str, Any]:
     """Per-stream sample accounting of the bag for a report: {topic: StreamAccount.summary()}.
 
     Empty for a legacy bag (its samples carry no index). "problems" lists one line per gap,
@@ -179,7 +192,7 @@ def recording_summary(bag: str | Path, namespace: str | None = None) -> dict[str
 
 
 def trajectory_from_bag(
-    bag: str | Path, namespace: str | None = None, segment: int | None = None
+    bag: str | Path | Bag, namespace: str | None = None, segment: int | None = None
 ) -> tuple[RunConfig, Trajectory]:
     """(RunConfig, Trajectory) of a recorded sim or realtime run.
 
@@ -228,18 +241,19 @@ class _Bag:
     arrays: dict[str, TopicArrays]
 
 
-def _read(bag: str | Path, namespace: str | None) -> _Bag:
-    """One integrity check and one decoding pass: configuration, namespace, state arrays."""
+def _read(source: str | Path | Bag, namespace: str | None) -> _Bag:
+    """One read of the bag (open_bag), one decoding pass: configuration, namespace, state arrays."""
+    bag = open_bag(source)
     info = _info(bag)
-    config = _config(bag, info)
-    namespace = _namespace(bag, info) if namespace is None else namespace
+    config = _config(bag.path, info)
+    namespace = _namespace(bag.path, info) if namespace is None else namespace
     state_topic, state, arrays = _state_arrays(bag, namespace)
     if state.t.size < 2:
-        raise ReportError(f"bag {str(bag)!r} has fewer than 2 {state_topic} messages: nothing to report")
-    return _Bag(bag, config, namespace, state_topic, state, arrays)
+        raise ReportError(f"bag {str(bag.path)!r} has fewer than 2 {state_topic} messages: nothing to report")
+    return _Bag(bag.path, config, namespace, state_topic, state, arrays)
 
 
-def read_run(bag: str | Path, namespace: str | None = None, segment: int | None = None) -> RecordedRun:
+def read_run(bag: str | Path | Bag, namespace: str | None = None, segment: int | None = None) -> RecordedRun:
     """Everything the report takes from a bag, from one read of it (one check, one pass).
 
     The trajectory as trajectory_from_bag gives it, the recording as recording_summary does, and

@@ -7,8 +7,9 @@ from typing import Any
 
 from ..app.analysis import analyze_displacement, whole_record
 from ..app.rundir import prepare_output_dir
+from ..bag import Bag
 from ..core.run import summarize
-from .frombag import read_run
+from .frombag import open_bag, read_run
 from .html import write_html_page
 
 FIGURE_FILES = ("wavelet.png", "time_history.png", "phase.png", "friction_velocity.png", "mu_velocity.png")
@@ -190,13 +191,14 @@ def markdown(summary: dict[str, Any], bag: Path) -> str:
     return "\n".join(lines)
 
 
-def write_report(bag: str | Path, out: str | Path, force: bool = False) -> Path:
+def write_report(bag: str | Path | Bag, out: str | Path, force: bool = False) -> Path:
     """Write figures, timeseries.csv, config.yaml, summary.json, report.md and report.html.
 
-    Returns report.md. The bag is read once (frombag.read_run). The wavelet section is that of
-    `lubrig analyze` with its defaults (whole record), computed on the trajectory in memory;
-    every file is written once. A bag whose samples carry their realtime lateness also gets the
-    "timing" section (app/lateness.py RigTiming.summary) and timing.png; other bags neither.
+    Returns report.md. The bag is read once (frombag.open_bag, unless it is a Bag already read).
+    The wavelet section is that of `lubrig analyze` with its defaults (whole record), computed
+    on the trajectory in memory; every file is written once. A bag whose samples carry their
+    realtime lateness also gets the "timing" section (app/lateness.py RigTiming.summary) and
+    timing.png; other bags neither.
     An existing non-empty `out` is refused unless force (then the report's own files are
     replaced).
     """
@@ -204,12 +206,12 @@ def write_report(bag: str | Path, out: str | Path, force: bool = False) -> Path:
     from ..figures.run import RUN_FILES, write_run_directory  # matplotlib only when drawing
     from ..figures.timing import TIMING_FIGURE, write_timing_figure
 
-    bag = Path(bag)
     out = prepare_output_dir(Path(out), force, "--out", (*RUN_FILES, TIMING_FIGURE, PAGE, HTML_PAGE))
-    run = read_run(bag)
+    source = open_bag(bag)
+    run = read_run(source)
     config, trajectory = run.config, run.trajectory
     summary = summarize(trajectory, config)
-    summary["source_bag"] = str(bag.resolve())
+    summary["source_bag"] = str(source.path.resolve())
     summary["recording"] = run.recording  # gaps found from the samples' indices
     if run.timing is not None:
         summary["timing"] = dict(run.timing.summary(), figure=TIMING_FIGURE)
@@ -225,6 +227,6 @@ def write_report(bag: str | Path, out: str | Path, force: bool = False) -> Path:
         title = style.run_title(config.name, config.rig, "Realtime timing")
         write_timing_figure(out, run.timing, title)
     page = out / PAGE
-    page.write_text(markdown(summary, bag))
+    page.write_text(markdown(summary, source.path))
     write_html_page(page, f"Run report: {run_heading(summary)}")
     return page

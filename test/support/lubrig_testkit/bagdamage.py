@@ -1,4 +1,5 @@
-"""The damage matrix's bag and its damages (test/test_bag_damage_matrix.py, test/test_bag_one_reader.py).
+"""The damage matrix's bag and its damages (test/test_bag_damage_matrix.py, test/test_bag_one_reader.py,
+test/test_report_one_read.py).
 
 write_bag writes one bag of the current layout with lubrig_ros's own BagWriter (case 1 as the sim
 recorder writes it); CASES damages a copy of it one way each, metadata.yaml field by field and the
