@@ -119,7 +119,11 @@ def select_topics(bag: OpenedBag, topics: Iterable[str] | None) -> list[str]:
     """
     valid = exportable_topics(bag)
     if topics is None:  # every sample stream that holds a message
-        return [t for t in valid if bag.counts.get(t, 0)]
+        held = [t for t in valid if bag.counts.get(t, 0)]
+        if not held:
+            listed = ", ".join(f"{t} ({m})" for t, m in bag.types.items()) or "none"
+            raise BagError(f"bag {str(bag.path)!r} holds no sample stream to export; its topics: {listed}")
+        return held
     chosen = list(dict.fromkeys(topics))
     for topic in chosen:
         if topic not in valid:

@@ -30,7 +30,7 @@ def _bounds(args: argparse.Namespace, bag: OpenedBag) -> tuple[int | None, int |
     start, end = args.start, args.end
     for option, value in (("--start", start), ("--end", end)):
         if value is not None and not (math.isfinite(value) and value >= 0):
-            raise InputError(f"{option} {value} is invalid: expected seconds >= 0 from the bag's start")
+            raise InputError(f"{option} {value:g} is invalid: expected seconds >= 0 from the bag's start")
     if start is not None and end is not None and start >= end:
         raise InputError(f"--start {start:g} is not before --end {end:g}: expected --start < --end")
     span = max(0, bag.end_ns - bag.start_ns) / 1e9
@@ -56,7 +56,9 @@ def _writable_dir(out: Path, force: bool) -> None:
         raise InputError(f"--out {str(out)!r} exists and is not a directory")
     if out.is_dir() and any(out.iterdir()) and not force:
         raise InputError(f"--out {str(out)!r} exists and is not empty: pass --force or choose a new folder")
-    parent = out if out.is_dir() else out.absolute().parent
+    parent = out.absolute()
+    while not parent.exists():  # the folders still missing are created
+        parent = parent.parent
     if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"--out {str(out)!r} is not writable: {str(parent)!r} is not a writable directory")
 
@@ -76,11 +78,11 @@ def _export(args: argparse.Namespace) -> int:
     bag = _open(args.bag)
     start, end = _bounds(args, bag)
     out = Path(args.out)
+    _writable_dir(out, args.force)
     try:
         select_topics(bag, args.topics)
     except BagError as exc:
         raise InputError(str(exc)) from exc
-    _writable_dir(out, args.force)
     try:
         report = export_bag(bag, out, args.format, args.topics, start, end)
     except BagError as exc:
