@@ -216,3 +216,59 @@ def test_column_units_have_one_home() -> None:
     names = [c.name for c in columns_of("lubrig_interfaces/msg/RigStateBlock")]
     assert names[:4] == ["sample_index", "segment", "rig_time_s", "log_time_s"]
     assert names[4:11] == [unit_column(f, SAMPLE_UNITS[f]) for f in BLOCK_FIELDS]
+
+
+def test_realtime_layout_rows(tmp_path: Path) -> None:
+    """Per-sample RigState as they are; a realtime block's lateness per sample and its declared skip."""
+    from lubrig_ros.bag.layout import typestore
+    from lubrig_ros.bag.writer import BagWriter
+
+    store = typestore()
+    types = store.types
+    header, stamp = types["std_msgs/msg/Header"], types["builtin_interfaces/msg/Time"]
+    fields = ("displacement", "velocity", "friction_coefficient", "friction_force", "band_velocity")
+    fields += ("relative_velocity", "belt_travel")
+    base = 1_800_000_000 * 10**9  # a wall-clock stamp, as a realtime plant's
+    writer = BagWriter(tmp_path / "bag", run_config="name: rt\n")
+    for k in range(5):
+        t = base + k * 10**6
+        values = {f: float(k + i / 10) for i, f in enumerate(fields)}
+        msg = types["lubrig_interfaces/msg/RigState"](header(stamp(*divmod(t, 10**9)), ""), k, 0, **values)
+        writer.write(
+            "/lubrig/state",
+            "lubrig_interfaces/msg/RigState",
+            t + 500,
+            bytes(store.serialize_cdr(msg, msg.__msgtype__)),
+        )
+    arrays = {f: np.arange(8, 12, dtype=float) + i / 10 for i, f in enumerate(fields)}
+    block = types["lubrig_interfaces/msg/RigStateBlock"](
+        header(stamp(*divmod(base + 8 * 10**6, 10**9)), ""),
+        1e-3,
+        8,
+        0,
+        **arrays,
+        lateness=np.array([1e-4, 2e-4, 0.0, 5e-5]),
+        skipped=3,
+    )
+    writer.write(
+        "/lubrig/state_block",
+        block.__msgtype__,
+        base + 9 * 10**6,
+        bytes(store.serialize_cdr(block, block.__msgtype__)),
+    )
+    writer.close()
+    out = tmp_path / "tables"
+    res = lubrig("bag", "export", str(tmp_path / "bag"), "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    state = csv.read_csv(out / "lubrig.state.csv")
+    assert state["sample_index"].to_pylist() == [0, 1, 2, 3, 4]
+    assert state["velocity_m_s"].to_pylist() == [k + 0.1 for k in range(5)]
+    assert state["log_time_s"].to_pylist() == [(base + k * 10**6 + 500) / 1e9 for k in range(5)]
+    assert state["rig_time_s"].to_pylist() == [(base + k * 10**6) / 1e9 for k in range(5)]
+    assert "lateness_s" not in state.column_names
+    blocks = csv.read_csv(out / "lubrig.state_block.csv")
+    assert blocks["sample_index"].to_pylist() == [8, 9, 10, 11]
+    assert blocks["lateness_s"].to_pylist() == [1e-4, 2e-4, 0.0, 5e-5]
+    assert blocks["skipped"].to_pylist() == [3, 0, 0, 0]
+    assert blocks["belt_travel_m"].to_pylist() == [8.6, 9.6, 10.6, 11.6]
+    assert (out / "config.yaml").read_text() == "name: rt\n"

@@ -203,18 +203,23 @@ class _Table:
 
 
 def _samples(msgtype: str, msg: Any, log_ns: int) -> dict[str, np.ndarray]:
-    """The per-sample arrays of one decoded message, with rig_time and log_time (s)."""
+    """The per-sample arrays of one decoded message, with rig_time and log_time (s).
+
+    Times are taken from whole nanoseconds (stamp_ns / 1e9, not sec + nanosec · 1e-9), so a
+    wall-clock stamp keeps every digit a double can hold.
+    """
+    stamp_s = (int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)) / 1e9
     if msgtype == RIG_STATE:
         cols = {name: np.array([float(getattr(msg, name))]) for name in RIG_STATE_FIELDS}
         cols["sample_index"] = np.array([int(msg.sample_index)], dtype=np.int64)
         cols["segment"] = np.array([int(msg.segment)], dtype=np.int64)
-        cols["rig_time"] = np.array([msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9])
+        cols["rig_time"] = np.array([stamp_s])
         cols["log_time"] = np.array([log_ns / 1e9])
         return cols
     cols = _block_samples(msgtype, msg)
-    n = len(cols["sample_index"])
-    cols["rig_time"] = cols.pop("stamp")
-    cols["log_time"] = log_ns / 1e9 + np.arange(n) * float(msg.sample_period)
+    offsets = np.arange(len(cols["sample_index"])) * float(msg.sample_period)
+    cols["rig_time"] = stamp_s + offsets
+    cols["log_time"] = log_ns / 1e9 + offsets
     return cols
 
 
