@@ -272,3 +272,26 @@ def test_realtime_layout_rows(tmp_path: Path) -> None:
     assert blocks["skipped"].to_pylist() == [3, 0, 0, 0]
     assert blocks["belt_travel_m"].to_pylist() == [8.6, 9.6, 10.6, 11.6]
     assert (out / "config.yaml").read_text() == "name: rt\n"
+
+
+def test_chunk_damaged_half_way_leaves_no_table_and_no_bag(tmp_path: Path) -> None:
+    """The cheap check passes (no chunk decompressed); the CRC of the damaged chunk stops the read."""
+    from lubrig_testkit.bagdamage import write_bag
+
+    bag = tmp_path / "bag"
+    write_bag(bag)
+    with open(bag / "bag.mcap", "r+b") as f:
+        summary = make_reader(f).get_summary()
+        assert summary is not None and len(summary.chunk_indexes) > 3
+        last = summary.chunk_indexes[-2]
+        at = last.chunk_start_offset + last.chunk_length - 8  # inside its compressed records
+        f.seek(at)
+        byte = f.read(1)
+        f.seek(at)
+        f.write(bytes([byte[0] ^ 0xFF]))
+    for args in (("export", "--out", str(tmp_path / "t")), ("filter", "--out", str(tmp_path / "f"))):
+        res = lubrig("bag", args[0], str(bag), *args[1:])
+        assert res.returncode == 2 and "damaged" in res.stderr and len(res.stderr.splitlines()) == 1, (
+            res.stderr
+        )
+        assert not Path(args[2]).exists()

@@ -246,11 +246,13 @@ def export_bag(
 
     start_ns / end_ns: log-time bounds (absolute, ns; a sample is kept when its log time is
     within them). Tables are written as NAME.partial and renamed when complete; on a BagError
-    (a chunk found damaged on the way) the partial files are removed and the error raised.
+    (a chunk found damaged on the way) the partial files (and `out`, if created here and left
+    empty) are removed and the error raised.
     """
     if fmt not in FORMATS:
         raise BagError(f"--format {fmt!r} is invalid; valid: {', '.join(FORMATS)}")
     chosen = select_topics(bag, topics)
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     report = ExportReport(out)
     tables: dict[str, _Table] = {}
@@ -279,6 +281,8 @@ def export_bag(
         for topic, table in tables.items():
             table.close(keep=ok)
             report.streams[topic].rows = table.rows
+        if not ok and created and not any(out.iterdir()):
+            out.rmdir()
     if bag.run_config is not None:
         report.config = out / CONFIG_FILE
         write_text_atomic(report.config, bag.run_config)
