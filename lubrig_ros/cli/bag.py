@@ -1,5 +1,7 @@
 """`lubrig bag info|check|repair BAG`: inspect, verify and repair recorded bags.
 
+(`lubrig bag export|crop|filter|merge`: lubrig_ros.cli.bag_data.)
+
 Exit status: 0 when the bag is fine (info, check) or was rebuilt and verifies / needed nothing
 (repair); 1 when check / info --verify find a problem (the first one on stderr, by byte offset
 and topic; every problem on stdout, one line each) or the rebuilt bag still does not verify;
@@ -15,6 +17,7 @@ from pathlib import Path
 from lubrig_ros.bag import BagError, bag_info, repair_bag
 from lubrig_ros.bag.repair import repaired_path
 from lubrig_ros.bag.verify import Verification, verify_bag
+from lubrig_ros.cli import bag_data
 from lubrig_ros.core.errors import InputError
 
 
@@ -132,7 +135,7 @@ def _repair(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add the `bag` subcommand with info, check and repair."""
+    """Add the `bag` subcommand with info, check, repair, export, crop, filter and merge."""
     p = subparsers.add_parser("bag", help="inspect, verify or repair recorded bags")
     sub = p.add_subparsers(dest="bag_command", required=True)
     info = sub.add_parser("info", help="print topics, types, counts, duration and gaps per stream")
@@ -157,3 +160,4 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     rep.add_argument("--force", action="store_true", help="rebuild even a bag that verifies")
     rep.add_argument("--no-backup", action="store_true", help="with --in-place: do not keep .mcap.orig")
     rep.set_defaults(func=_repair)
+    bag_data.register(sub)

@@ -31,10 +31,12 @@ __all__ = [
     "MAX_SAMPLES",
     "MIN_SAMPLES_PER_PERIOD",
     "RIG_FIELDS",
+    "SAMPLE_UNITS",
     "SIMULATION_FIELDS",
     "FieldSpec",
     "band_field",
     "friction_field",
+    "unit_column",
 ]
 
 
@@ -193,3 +195,28 @@ def band_field(name: str) -> FieldSpec | None:
         if name in table:
             return table[name]
     return None
+
+
+#: SI unit of every per-sample field the plant publishes (RigState, the arrays of RigStateBlock
+#: and BandVelocityBlock), by field name ('1' for a pure number). The field list and its order are
+#: app/plant_output.BLOCK_FIELDS; lateness is RigStateBlock's realtime timing.
+SAMPLE_UNITS: dict[str, str] = {
+    "displacement": "m",
+    "velocity": "m/s",
+    "friction_coefficient": "1",
+    "friction_force": "N",
+    "band_velocity": "m/s",
+    "relative_velocity": "m/s",
+    "belt_travel": "m",
+    "lateness": "s",
+    "time": "s",
+}
+
+
+def unit_column(name: str, unit: str) -> str:
+    """A table column named with its unit: displacement_m, velocity_m_s, friction_coefficient.
+
+    The naming of timeseries.csv (core.trajectory.Trajectory.COLUMNS) and of `lubrig bag export`:
+    '/' becomes '_', a pure number ('1') adds nothing.
+    """
+    return name if unit in ("1", "") else f"{name}_{unit.replace('/', '_')}"
