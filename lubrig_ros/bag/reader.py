@@ -150,12 +150,27 @@ def stream_messages(
     topics: only these (a topic the bag does not hold gives nothing). The whole data section is
     scanned (every chunk's CRC checked) before the first message is yielded.
     """
-    path = find_mcap(bag)
+    kept = [(t, stream, data) for stream, t, data in messages_in_file_order(bag, topics)]
+    kept.sort(key=lambda item: item[0])  # stable: ties keep their order in the file
+    for t, stream, data in kept:
+        yield stream, t, data
+
+
+def messages_in_file_order(
+    bag: str | Path, topics: Iterable[str] | None = None, mcap: Path | None = None
+) -> Iterator[tuple[Stream, int, bytes]]:
+    """(stream, log_time_ns, cdr_bytes) of every message of `topics` (None: all), in file order.
+
+    Streams: each message is yielded as the scan reaches it (every chunk's CRC checked), nothing
+    is held. Read from the MCAP file itself (`mcap`, else found in `bag`), its channels and
+    schemas, never through metadata.yaml. BagError for a message on an undefined channel, and at
+    the end for a damaged data section (what was yielded before stays valid).
+    """
+    path = mcap if mcap is not None else find_mcap(bag)
     wanted = set(topics) if topics is not None else None
     result = ScanResult()
     schemas: dict[int, Schema] = {}
     streams: dict[int, Stream] = {}
-    kept: list[tuple[int, Stream, bytes]] = []
     try:
         for rec in scan(path, result):
             if isinstance(rec, Schema):
@@ -171,15 +186,12 @@ def stream_messages(
                         f"undefined channel {rec.channel_id}; run `lubrig bag repair {bag}`"
                     )
                 if wanted is None or stream.topic in wanted:
-                    kept.append((rec.log_time, stream, rec.data))
+                    yield stream, rec.log_time, rec.data
     except OSError as exc:
         raise BagError(f"cannot read {str(path)!r}: {exc.strerror or exc}") from exc
     if not result.complete:
         problem = result.stop_reason or "; ".join(result.damaged_chunks)
         raise BagError(f"bag {str(bag)!r} is damaged: {problem}; run `lubrig bag repair {bag}`")
-    kept.sort(key=lambda item: item[0])  # stable: ties keep their order in the file
-    for t, stream, data in kept:
-        yield stream, t, data
 
 
 _BAG_STORES: dict[tuple[str, str], Typestore] = {}

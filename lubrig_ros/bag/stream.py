@@ -5,8 +5,8 @@ footer, metadata.yaml: no chunk is decompressed) and gives an :class:`OpenedBag`
 types, counts, log-time span and run configuration. :meth:`OpenedBag.messages` then walks the
 data section once (lubrig_ros.bag.mcapscan: every chunk's CRC checked as it is reached) and
 yields each message as it comes, so a one-hour recording costs one chunk of memory, not the run.
-A chunk found damaged on the way is a BagError at that point (what was yielded before stays
-valid; the callers write their output under a temporary name and drop it then).
+A damaged chunk is a BagError when the walk ends (what was yielded before stays valid; the
+callers write their output under a temporary name and drop it then).
 
 Order: the file's, which is the order the recorder wrote (per stream, the order the samples
 arrived: sample order for the plant's streams; `lubrig bag check` names any sample out of order).
@@ -20,8 +20,7 @@ from pathlib import Path
 
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import RUN_CONFIG_KEY
-from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
-from lubrig_ros.bag.reader import Stream
+from lubrig_ros.bag.reader import Stream, messages_in_file_order
 from lubrig_ros.bag.verify import verify_bag
 
 
@@ -47,35 +46,7 @@ class OpenedBag:
 
         BagError when a chunk does not verify or a message is on an undefined channel.
         """
-        wanted = set(topics) if topics is not None else None
-        result = ScanResult()
-        schemas: dict[int, Schema] = {}
-        streams: dict[int, Stream] = {}
-        try:
-            for rec in scan(self.mcap, result):
-                if isinstance(rec, Message):
-                    stream = streams.get(rec.channel_id)
-                    if stream is None:
-                        raise BagError(
-                            f"bag {str(self.path)!r} is damaged: a message at log time {rec.log_time} ns "
-                            f"is on undefined channel {rec.channel_id}; run `lubrig bag repair {self.path}`"
-                        )
-                    if wanted is None or stream.topic in wanted:
-                        yield stream, rec.log_time, rec.data
-                elif isinstance(rec, Schema):
-                    schemas.setdefault(rec.id, rec)
-                elif isinstance(rec, Channel):
-                    schema = schemas.get(rec.schema_id)
-                    streams.setdefault(rec.id, Stream(rec.topic, schema.name if schema else "?", schema))
-                if result.damaged_chunks:
-                    break
-        except OSError as exc:
-            raise BagError(f"cannot read {str(self.mcap)!r}: {exc.strerror or exc}") from exc
-        if not result.complete:
-            problem = result.stop_reason or "; ".join(result.damaged_chunks)
-            raise BagError(
-                f"bag {str(self.path)!r} is damaged: {problem}; run `lubrig bag repair {self.path}`"
-            )
+        return messages_in_file_order(self.path, topics, mcap=self.mcap)
 
 
 def open_bag(bag: str | Path) -> OpenedBag:
