@@ -295,3 +295,19 @@ def test_chunk_damaged_half_way_leaves_no_table_and_no_bag(tmp_path: Path) -> No
             res.stderr
         )
         assert not Path(args[2]).exists()
+
+
+def test_merge_refuses_two_runs(tmp_path: Path) -> None:
+    """Bags of two run configurations are not merged (one line, exit 2, no output)."""
+    from lubrig_testkit.bagdamage import write_bag
+
+    from lubrig_ros.bag.writer import BagWriter
+
+    write_bag(tmp_path / "a")
+    other = BagWriter(tmp_path / "b", run_config="name: other\n")
+    other.write("/lubrig/displacement", "std_msgs/msg/Float64", 0, b"\x00\x01\x00\x00" + bytes(8))
+    other.close()
+    res = lubrig("bag", "merge", str(tmp_path / "a"), str(tmp_path / "b"), "--out", str(tmp_path / "m"))
+    assert res.returncode == 2 and len(res.stderr.splitlines()) == 1, res.stderr
+    assert "different run configurations" in res.stderr and str(tmp_path / "b") in res.stderr
+    assert not (tmp_path / "m").exists()
