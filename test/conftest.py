@@ -2,7 +2,9 @@
 
 Fixtures (implementation in test/support/lubrig_testkit/harness.py, shared with bench/):
 
-- ``ros_domain``: a ROS_DOMAIN_ID no other test run on this machine holds while the test runs.
+- ``ros_domain``: a ROS_DOMAIN_ID no other test run on this machine holds while the test runs;
+  at its end any process still on that domain (whoever started it: procs, the test's own Popen,
+  a child that left its process group) is killed and the test errors naming it.
 - ``ros_env``: os.environ for processes on that domain (localhost discovery, unbuffered output).
 - ``procs``: starts node processes on ``ros_env`` (``procs.node("plant", mode="realtime")``,
   ``procs.module(...)``, ``procs.script(...)``, ``procs.run_module(...)``), logs under tmp_path;
@@ -28,7 +30,7 @@ from pathlib import Path
 import pytest
 
 try:
-    from lubrig_testkit.harness import DomainLease, Probe, Processes
+    from lubrig_testkit.harness import DomainLease, Probe, Processes, kill_strays
     from lubrig_testkit.harness import ros_env as _ros_env
 except ImportError as exc:  # pragma: no cover - a venv set up before the testkit existed
     raise ImportError(f"{exc}: the test helpers are not installed; run `make setup`") from exc
@@ -36,16 +38,22 @@ except ImportError as exc:  # pragma: no cover - a venv set up before the testki
 ROS_FIXTURES = {"ros_domain", "ros_env", "procs", "probe", "ros_module_domain"}
 
 
-@pytest.fixture
-def ros_domain() -> Iterator[int]:
+def _leased_domain() -> Iterator[int]:
+    """A domain for the fixture's scope; then any process still on it is killed and named."""
     with DomainLease() as domain:
         yield domain
+        strays = kill_strays(domain)
+    assert not strays, f"processes left behind on ROS_DOMAIN_ID {domain} (killed): {strays}"
+
+
+@pytest.fixture
+def ros_domain() -> Iterator[int]:
+    yield from _leased_domain()
 
 
 @pytest.fixture(scope="module")
 def ros_module_domain() -> Iterator[int]:
-    with DomainLease() as domain:
-        yield domain
+    yield from _leased_domain()
 
 
 @pytest.fixture
