@@ -473,21 +473,33 @@ class Probe:
         """Topic name -> type names in the ROS graph."""
         return dict(self.node.get_topic_names_and_types())
 
-    def call(self, srv_type: type, name: str, request: Any, timeout: float = 20.0) -> Any:
-        """Call a service and wait for its answer."""
+    def call(
+        self, srv_type: type, name: str, request: Any, timeout: float = 20.0, resend: float = 0.0
+    ) -> Any:
+        """Call a service and wait for its answer.
+
+        `resend` (s, idempotent requests only): send the request again while none is answered.
+        Fast DDS drops a response when the server has not yet matched this new client's
+        response reader (it waits 100 ms for that, then warns "failed to send response
+        (timeout)"), and the request is never answered; a start-up on a loaded machine can take
+        longer than that to match. The first answer to any of the copies is taken.
+        """
         client = self.node.create_client(srv_type, name)
         assert client.wait_for_service(timeout_sec=timeout), f"service {name} not available"
-        future = client.call_async(request)
-        assert self.wait_for(future.done, timeout), f"service {name} did not answer"
-        return future.result()
+        futures = [client.call_async(request)]
+        end = time.monotonic() + timeout
+        while not self.wait_for(lambda: any(f.done() for f in futures), min(resend or timeout, timeout)):
+            assert resend and time.monotonic() < end, f"service {name} did not answer"
+            futures.append(client.call_async(request))
+        return next(f for f in futures if f.done()).result()
 
     def set_parameter(self, node: str, name: str, value: Any) -> Any:
-        """SetParameters on /<node>; returns the SetParametersResult."""
+        """SetParameters on /<node>; returns the SetParametersResult (idempotent: resent, see call)."""
         from rcl_interfaces.srv import SetParameters
         from rclpy.parameter import Parameter
 
         request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-        return self.call(SetParameters, f"/{node}/set_parameters", request).results[0]
+        return self.call(SetParameters, f"/{node}/set_parameters", request, resend=5.0).results[0]
 
     def close(self) -> None:
         """Shut the context down and stop the spin thread."""
