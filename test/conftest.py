@@ -15,6 +15,8 @@ Fixtures (implementation in test/support/lubrig_testkit/harness.py, shared with 
 - ``cpu_hogs``: ``cpu_hogs(2)`` starts two busy processes beside the test (killed at its end),
   for tests that assert behaviour on a loaded machine (status, exit code, every sample; never a rate).
 
+A pytest ended by SIGTERM tears its fixtures down as on a Ctrl-C (nothing started is left behind).
+
 Tiers: a test that uses one of these fixtures is marked ``ros`` automatically (a module may also
 set ``pytestmark = pytest.mark.ros``); long runs are marked ``slow``. ``make test-fast`` runs
 ``-m "not ros and not slow"``; ``make test`` runs everything.
@@ -22,6 +24,7 @@ set ``pytestmark = pytest.mark.ros``); long runs are marked ``slow``. ``make tes
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -94,6 +97,16 @@ def cpu_hogs() -> Iterator[Callable[[int], None]]:
         for hog in hogs:
             hog.kill()
             hog.wait()
+
+
+def _interrupted(signum: int, _frame: object) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """SIGTERM (e.g. an outer `timeout`) ends pytest as a Ctrl-C does: the fixtures' teardown
+    still runs, so the processes the tests started are stopped instead of left behind."""
+    signal.signal(signal.SIGTERM, _interrupted)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
