@@ -2,7 +2,9 @@
 
 Fixtures (implementation in test/support/lubrig_testkit/harness.py, shared with bench/):
 
-- ``ros_domain``: a ROS_DOMAIN_ID no other test run on this machine holds while the test runs.
+- ``ros_domain``: a ROS_DOMAIN_ID no other test run on this machine holds while the test runs;
+  at its end any process still on that domain (whoever started it: procs, the test's own Popen,
+  a child that left its process group) is killed and the test errors naming it.
 - ``ros_env``: os.environ for processes on that domain (localhost discovery, unbuffered output).
 - ``procs``: starts node processes on ``ros_env`` (``procs.node("plant", mode="realtime")``,
   ``procs.module(...)``, ``procs.script(...)``, ``procs.run_module(...)``), logs under tmp_path;
@@ -13,6 +15,8 @@ Fixtures (implementation in test/support/lubrig_testkit/harness.py, shared with 
 - ``cpu_hogs``: ``cpu_hogs(2)`` starts two busy processes beside the test (killed at its end),
   for tests that assert behaviour on a loaded machine (status, exit code, every sample; never a rate).
 
+A pytest ended by SIGTERM tears its fixtures down as on a Ctrl-C (nothing started is left behind).
+
 Tiers: a test that uses one of these fixtures is marked ``ros`` automatically (a module may also
 set ``pytestmark = pytest.mark.ros``); long runs are marked ``slow``. ``make test-fast`` runs
 ``-m "not ros and not slow"``; ``make test`` runs everything.
@@ -20,6 +24,7 @@ set ``pytestmark = pytest.mark.ros``); long runs are marked ``slow``. ``make tes
 
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -28,7 +33,7 @@ from pathlib import Path
 import pytest
 
 try:
-    from lubrig_testkit.harness import DomainLease, Probe, Processes
+    from lubrig_testkit.harness import DomainLease, Probe, Processes, kill_strays
     from lubrig_testkit.harness import ros_env as _ros_env
 except ImportError as exc:  # pragma: no cover - a venv set up before the testkit existed
     raise ImportError(f"{exc}: the test helpers are not installed; run `make setup`") from exc
@@ -36,16 +41,22 @@ except ImportError as exc:  # pragma: no cover - a venv set up before the testki
 ROS_FIXTURES = {"ros_domain", "ros_env", "procs", "probe", "ros_module_domain"}
 
 
-@pytest.fixture
-def ros_domain() -> Iterator[int]:
+def _leased_domain() -> Iterator[int]:
+    """A domain for the fixture's scope; then any process still on it is killed and named."""
     with DomainLease() as domain:
         yield domain
+        strays = kill_strays(domain)
+    assert not strays, f"processes left behind on ROS_DOMAIN_ID {domain} (killed): {strays}"
+
+
+@pytest.fixture
+def ros_domain() -> Iterator[int]:
+    yield from _leased_domain()
 
 
 @pytest.fixture(scope="module")
 def ros_module_domain() -> Iterator[int]:
-    with DomainLease() as domain:
-        yield domain
+    yield from _leased_domain()
 
 
 @pytest.fixture
@@ -86,6 +97,16 @@ def cpu_hogs() -> Iterator[Callable[[int], None]]:
         for hog in hogs:
             hog.kill()
             hog.wait()
+
+
+def _interrupted(signum: int, _frame: object) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """SIGTERM (e.g. an outer `timeout`) ends pytest as a Ctrl-C does: the fixtures' teardown
+    still runs, so the processes the tests started are stopped instead of left behind."""
+    signal.signal(signal.SIGTERM, _interrupted)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

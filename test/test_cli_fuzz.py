@@ -56,6 +56,26 @@ def _files(root: Path) -> dict[str, Path]:
             logspace: {start: 1.0e-9, stop: 1.0e-6, num: 200}
         """,
     )
+    write(  # refused from the stated sizes: the axis is never built (it would not fit in memory)
+        "huge.yaml",
+        """\
+        name: huge
+        axes:
+          - parameter: band.velocity
+            linspace: {start: 1.0e-9, stop: 1.0e-6, num: 1000000000000}
+        """,
+    )
+    write(
+        "wide.yaml",
+        """\
+        name: wide
+        axes:
+          - parameter: rig.mass
+            linspace: {start: 0.1, stop: 1.0, num: 1001}
+          - parameter: rig.damping_ratio
+            logspace: {start: 0.001, stop: 0.1, num: 1000}
+        """,
+    )
     write(
         "badpoint.yaml",
         """\
@@ -191,6 +211,10 @@ def _invocations(f: dict[str, Path], out: Path) -> list[tuple[list[str], str]]:
         ([*rig, "--namespace", "bad-ns"], "bad-ns"),
         ([*rig, "--config", str(f["area.yaml"])], "contact_area"),
         ([*rig, "--timeout", "inf"], "inf"),
+        ([*rig, "--view", "99999"], "99999"),
+        ([*rig, "--view", "0"], "1..65535"),
+        ([*rig, "--view", "-1"], "-1"),
+        ([*rig, "--view", "http"], "http"),
         (["rig", "--duration", "1"], "--run-dir"),
     ]
     bag = str(f["bag"])
@@ -245,6 +269,8 @@ def _invocations(f: dict[str, Path], out: Path) -> list[tuple[list[str], str]]:
         (["paper", "--out", str(out / "p"), "--recompute-scan", "--workers", "0"], "0"),
         (["sweep", str(f["grid.yaml"]), "--out", str(out / "s"), "--scheduler", "serial"], "samples"),
         (["sweep", str(f["badpoint.yaml"]), "--out", str(out / "s")], "mass"),
+        (["sweep", str(f["huge.yaml"]), "--out", str(out / "s")], "1000000000000 points"),
+        (["sweep", str(f["wide.yaml"]), "--out", str(out / "s")], "1001000 points (1001 x 1000)"),
         (["sweep", str(f["missing"]), "--out", str(out / "s")], "missing"),
         (["sweep", str(f["badpoint.yaml"]), "--out", str(out / "s"), "--workers", "100000"], "100000"),
         (["sweep", str(f["badpoint.yaml"]), "--out", str(out / "s"), "--worker-timeout", "inf"], "inf"),

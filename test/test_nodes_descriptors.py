@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import math
 
+from lubrig_testkit.harness import wait_until
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import DescribeParameters
 
 from lubrig_ros.app import contract
+from lubrig_ros.app.rig_plan import READY_LINES
 
 NS = contract.DEFAULT_NAMESPACE
 
@@ -46,18 +48,23 @@ def _check_descriptor(node: str, d, spec: contract.NodeParameter) -> None:
 
 
 def test_descriptors_hold_the_contract_ranges_and_runtime_updates_are_checked(procs, probe):
-    for node in contract.NODE_PARAMETERS:
-        procs.node(node, case=1)
+    nodes = {node: procs.node(node, case=1) for node in contract.NODE_PARAMETERS}
+    for node, proc in nodes.items():  # each built and spinning (its start line), or its log
+        wait_until(lambda p=proc, n=node: READY_LINES[n] in p.errors(), 180, f"{node} up", alive=(proc,))
     bounded = 0
     for node, specs in contract.NODE_PARAMETERS.items():
         # profile.*: declared from the core profile registry with its own text (belt_drive)
         names = sorted(p.name for p in specs if not p.name.startswith("profile."))
-        described = probe.call(
-            DescribeParameters,
-            f"{NS}/{node}/describe_parameters",
-            DescribeParameters.Request(names=names),
-            120,
-        )
+        try:  # idempotent: resent if a response is dropped (Probe.call)
+            described = probe.call(
+                DescribeParameters,
+                f"{NS}/{node}/describe_parameters",
+                DescribeParameters.Request(names=names),
+                60,
+                resend=5.0,
+            )
+        except AssertionError as exc:
+            raise AssertionError(f"{exc}\n{procs.logs()}") from None
         assert [d.name for d in described.descriptors] == names
         for d in described.descriptors:
             spec = contract.parameter(node, d.name)

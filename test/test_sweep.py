@@ -244,6 +244,10 @@ BAD_SPECS = {
         {"parameter": "band.ramp_time", "logspace": {"start": -2, "stop": 0, "num": 3}},
         "not exponents",
     ),
+    "grid too large": (  # counted from num: 10**12 values are never built
+        {"parameter": "band.ramp_time", "linspace": {"start": 0.1, "stop": 0.2, "num": 10**12}},
+        "the grid has 1000000000000 points (1000000000000); at most 1000000 are allowed",
+    ),
 }
 
 

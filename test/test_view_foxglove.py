@@ -7,6 +7,10 @@ subscribes to the state and wavelet image channels and decodes what it gets with
 server advertised. Assertions are about content and decimation (message counts bounded by the
 display rate over the rig time covered, stamps at least one display period apart), never about
 wall-clock rates.
+
+Every test runs within TEST_BUDGET_S (its waits share one deadline; each is on a condition and
+fails with the processes' logs), and what it started is stopped at its end (the procs fixture;
+anything left on the test's ROS domain is killed and named by conftest.py).
 """
 
 from __future__ import annotations
@@ -18,14 +22,39 @@ import re
 import shutil
 import signal
 import subprocess
+import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
 NS = "/lubrig"
 CLIENT_DIR = Path(__file__).parent / "support" / "foxglove_client"
+#: s a test may take in all (start-ups of a few node processes under load, then the client's wait):
+#: a guard against a hang, shared by the waits of one test.
+TEST_BUDGET_S = 240.0
+#: s the client (node) may take to start and to end after its own wait of `seconds` ran out
+CLIENT_SLACK_S = 30.0
 pytestmark = pytest.mark.ros
+
+
+class Deadline:
+    """The waits of one test: each gets what is left of TEST_BUDGET_S."""
+
+    def __init__(self, budget: float = TEST_BUDGET_S) -> None:
+        self.end = time.monotonic() + budget
+
+    def left(self, reserve: float = 0.0) -> float:
+        """s left (less `reserve`, kept for what follows); AssertionError if none."""
+        left = self.end - time.monotonic() - reserve
+        assert left > 0, f"the test's budget of {TEST_BUDGET_S:g} s is spent"
+        return left
+
+
+@pytest.fixture
+def deadline() -> Deadline:
+    return Deadline()
 
 
 def _client_ready() -> None:
@@ -35,30 +64,35 @@ def _client_ready() -> None:
         pytest.fail(f"the Foxglove client is not installed in {CLIENT_DIR}: run `make setup`")
 
 
-def _serve(procs, *args: str) -> str:
+def _serve(procs, deadline: Deadline, *args: str) -> str:
     """Start the view on a free port; its ws:// URL."""
     view = procs.script("view", "--port", "0", *args)
-    view.wait_for_output("view: serving", 180)  # a guard: imports are slow under load
+    # imports are slow under load; the client's wait keeps a minute of the budget
+    view.wait_for_output("view: serving", deadline.left(reserve=60))
     match = re.search(r"ws://[0-9.]+:(\d+)", view.output())
     assert match, view.log()
     return match.group(0)
 
 
-def _listen(url: str, seconds: float, *topics: str) -> tuple[list[dict], list[dict]]:
-    """Run Foxglove's client until it has TOPIC=COUNT messages of each topic (at most `seconds`,
-    a guard against a hang): (advertised channels, decoded messages)."""
+def _listen(
+    url: str, deadline: Deadline, logs: Callable[[], str], *topics: str
+) -> tuple[list[dict], list[dict]]:
+    """Run Foxglove's client until it has TOPIC=COUNT messages of each topic (for what is left of
+    the test's budget at most): (advertised channels, decoded messages). `logs`: the node
+    processes' logs, shown when the client did not get them."""
     _client_ready()
-    done = subprocess.run(
-        ["node", str(CLIENT_DIR / "client.mjs"), url, str(seconds), *topics],
-        capture_output=True,
-        text=True,
-        timeout=seconds + 60,
-    )
-    assert done.returncode == 0, done.stderr
+    seconds = deadline.left(reserve=CLIENT_SLACK_S)
+    argv = ["node", str(CLIENT_DIR / "client.mjs"), url, f"{seconds:.0f}", *topics]
+    try:  # the client ends itself after `seconds`; the slack covers its start-up and exit
+        done = subprocess.run(argv, capture_output=True, text=True, timeout=seconds + CLIENT_SLACK_S)
+    except subprocess.TimeoutExpired as exc:  # run() has killed it
+        raise AssertionError(f"the Foxglove client did not end: {exc.stderr!r}\n{logs()}") from None
+    assert done.returncode == 0, f"{done.stderr}\n{logs()}"
     lines = [json.loads(line) for line in done.stdout.splitlines() if line.strip()]
     counts = Counter(x["topic"] for x in lines if "topic" in x)
     channels = [x["advertise"]["topic"] for x in lines if "advertise" in x]
-    assert lines and lines[-1] == {"done": True, "complete": True}, (counts, channels, done.stderr)
+    complete = lines and lines[-1] == {"done": True, "complete": True}
+    assert complete, f"wanted {topics}, got {dict(counts)} on {channels}: {done.stderr}\n{logs()}"
     errors = [x for x in lines if "error" in x]
     assert not errors, errors
     advertised = [x["advertise"] for x in lines if "advertise" in x]
@@ -118,14 +152,14 @@ def _assert_decimated(stamps: list[int], rate: float) -> None:
     assert len(stamps) <= (stamps[-1] - stamps[0]) / period + 1
 
 
-def test_realtime_rig_state_and_wavelet_image_in_foxglove_client(procs):
+def test_realtime_rig_state_and_wavelet_image_in_foxglove_client(procs, deadline):
     """Realtime rig (1 kHz states) with the view at 20 Hz for state: decoded, finite, decimated."""
-    procs.node("plant", mode="realtime")
+    procs.node("plant", mode="realtime", max_lag=10.0)  # about the view, not about timing
     procs.node("belt_drive", mode="realtime")
     procs.node("analysis", window=256, n_scales=16, image_width=64, publish_period=0.2)
-    url = _serve(procs, "--rate", "state=20")
+    url = _serve(procs, deadline, "--rate", "state=20")
     state, image = f"{NS}/state", f"{NS}/wavelet_image"
-    advertised, messages = _listen(url, 180.0, f"{state}=40", f"{image}=2")
+    advertised, messages = _listen(url, deadline, procs.logs, f"{state}=40", f"{image}=2")
     channels = {c["topic"]: c for c in advertised}
     # every channel: ROS 2 CDR with its ros2msg definition, as Foxglove decodes natively
     assert state in channels and image in channels, sorted(channels)
@@ -170,10 +204,11 @@ def _ramp_block(k: int, n: int = 100, spikes: frozenset[int] = frozenset()):
     return msg
 
 
-def _serve_blocks(procs, probe, rate: str, expect: str, spikes: frozenset[int] = frozenset()):
+def _serve_blocks(
+    procs, probe, deadline: Deadline, rate: str, expect: str, spikes: frozenset[int] = frozenset()
+):
     """Blocks published here (five times faster than real time) while the client listens."""
     import threading
-    import time
 
     from rclpy.qos import QoSProfile, ReliabilityPolicy
 
@@ -181,7 +216,7 @@ def _serve_blocks(procs, probe, rate: str, expect: str, spikes: frozenset[int] =
 
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     pub = probe.publisher(f"{NS}/state_block", RigStateBlock, qos)
-    url = _serve(procs, "--rate", rate)
+    url = _serve(procs, deadline, "--rate", rate)
     stop = threading.Event()
 
     def publish() -> None:
@@ -195,20 +230,20 @@ def _serve_blocks(procs, probe, rate: str, expect: str, spikes: frozenset[int] =
     worker = threading.Thread(target=publish, daemon=True)
     worker.start()
     try:
-        return _listen(url, 180.0, expect)
+        return _listen(url, deadline, procs.logs, expect)
     finally:
         stop.set()
         worker.join(5)
 
 
-def test_state_blocks_shown_as_decimated_rig_states(procs, probe):
+def test_state_blocks_shown_as_decimated_rig_states(procs, probe, deadline):
     """RigStateBlock on <ns>/state_block (sim mode's plant output) arrives as RigState samples.
 
     The blocks come from a publisher in this test with known values, so every sample the client
     decodes is checked against the block it came from; rate 100 Hz over 1 kHz samples. The
     values rise monotonically: the view adds no extremes, so the samples are 10 ms apart.
     """
-    advertised, messages = _serve_blocks(procs, probe, "state=100", f"{NS}/state=30")
+    advertised, messages = _serve_blocks(procs, probe, deadline, "state=100", f"{NS}/state=30")
     channels = {c["topic"]: c for c in advertised}
     assert channels[f"{NS}/state"]["schemaName"] == "lubrig_interfaces/msg/RigState"
     assert f"{NS}/state_block" not in channels  # shown as its samples only
@@ -225,10 +260,10 @@ def test_state_blocks_shown_as_decimated_rig_states(procs, probe):
     _assert_decimated([_stamp_ns(s) for s in states], 100.0)
 
 
-def test_a_one_sample_slip_spike_survives_decimation(procs, probe):
+def test_a_one_sample_slip_spike_survives_decimation(procs, probe, deadline):
     """A velocity spike of one sample between two displayed samples reaches the Foxglove client."""
     spikes = frozenset(range(1037, 100_000, 250))  # sample 37 of every 250: never on the 20 Hz grid
-    _advertised, messages = _serve_blocks(procs, probe, "state=20", f"{NS}/state=60", spikes)
+    _advertised, messages = _serve_blocks(procs, probe, deadline, "state=20", f"{NS}/state=60", spikes)
     states = [m["message"] for m in messages if m["topic"] == f"{NS}/state"]
     indices = [s["sample_index"] for s in states]
     assert indices == sorted(indices) and len(states) >= 60
@@ -254,11 +289,11 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path):
+def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path, deadline):
     """`lubrig rig --view PORT`: the launcher starts the view with the nodes; the client gets states.
 
     The run is long (900 s) so that slow start-ups under load cannot end it first; the test stops it
-    with Ctrl-C once the client has its messages.
+    with Ctrl-C once the client has its messages (and the procs fixture at its end otherwise).
     """
     port = _free_port()
     rig = procs.script(
@@ -268,6 +303,8 @@ def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path):
         "1",
         "--mode",
         "realtime",
+        "--max-lag",
+        "10",  # about the view, not about timing
         "--duration",
         "900",
         "--bag",
@@ -277,21 +314,18 @@ def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path):
         "--view",
         str(port),
     )
-    rig.wait_for_output("live view on", 180)
     view_log = tmp_path / "run" / "logs" / "view.log"
-    deadline = 180.0
-    import time
-
-    end = time.monotonic() + deadline
-    while "view: serving" not in (view_log.read_text() if view_log.exists() else ""):
-        assert time.monotonic() < end and rig.running(), rig.log()
-        time.sleep(0.2)
-    _channels, messages = _listen(f"ws://127.0.0.1:{port}", 120.0, f"{NS}/state=20")
+    logs = lambda: f"{rig.log()}\n--- view.log:\n{view_log.read_text() if view_log.exists() else ''}"  # noqa: E731
+    # the launcher says so once the view has printed its serving line
+    rig.wait_for_output("live view on", deadline.left(reserve=60))
+    assert "view: serving" in view_log.read_text(), logs()
+    _channels, messages = _listen(f"ws://127.0.0.1:{port}", deadline, logs, f"{NS}/state=20")
     states = [m["message"] for m in messages if m["topic"] == f"{NS}/state"]
     assert len(states) >= 20
     assert all(math.isfinite(v) for s in states for v in _numbers(s))
     _assert_shown_samples(states, 50.0)  # the view's default for state
-    # Ctrl-C: the launcher stops the nodes and the view, and exits 130 (interrupted, as a shell says)
-    assert rig.stop(signal.SIGINT, 120) == 130, rig.log()
+    # Ctrl-C: the launcher stops the nodes and the view (its own escalation is bounded), and exits
+    # 130 (interrupted, as a shell says)
+    assert rig.stop(signal.SIGINT, 60) == 130, logs()
     assert "interrupted, stopping the nodes" in rig.errors()
     assert "view: stopped" in view_log.read_text()

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import math
 import os
 import shutil
@@ -56,6 +57,7 @@ from ..app.rundir import prepare_output_dir
 from ..app.selection import RunSelection
 from ..core.params import CONVENTIONS, ParameterError
 from ..core.presets import RunConfig, config_dir
+from ..nodes.view import DEFAULT_PORT, HIGHEST_PORT, tcp_port
 from .main import CommandError
 from .progress import Progress
 from .rig_ros import STALL_GIVE_UP_S, namespace_taken, wait_complete
@@ -449,9 +451,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--view",
         nargs="?",
-        type=int,
-        const=8765,
+        type=functools.partial(tcp_port, lowest=1),  # the URL printed must be the one served
+        const=DEFAULT_PORT,
         metavar="PORT",
-        help="also serve the run to Foxglove on ws://127.0.0.1:PORT (default 8765; lubrig view)",
+        help=f"also serve the run to Foxglove on ws://127.0.0.1:PORT (default {DEFAULT_PORT}, "
+        f"valid 1..{HIGHEST_PORT}; lubrig view)",
     )
     parser.set_defaults(func=run)

@@ -34,9 +34,9 @@ def config_from_args(args: argparse.Namespace) -> RunConfig:
 
 def run(args: argparse.Namespace) -> int:
     """Entry of `lubrig simulate`."""
-    from ..figures.run import RUN_FILES  # matplotlib only when drawing
+    config = config_from_args(args)  # bad input refused before the figure modules load (seconds)
+    from ..figures.run import RUN_FILES  # matplotlib, scipy.signal: only for a run that goes ahead
 
-    config = config_from_args(args)
     out = rundir.prepare_output_dir(Path(args.out), args.force, "--out", RUN_FILES)
     started = time.perf_counter()
     trajectory = simulate(config)

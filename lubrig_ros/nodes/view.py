@@ -39,6 +39,8 @@ from lubrig_ros.core.params import ParameterError
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765  # Foxglove's default for the WebSocket protocol
+#: The TCP ports a server can bind (and a client reach); 0 asks the system for a free one.
+HIGHEST_PORT = 65535
 DISCOVERY_PERIOD_S = 0.5
 TIME_PERIOD_S = 0.1
 GLOBAL_TOPICS = ("/clock", "/diagnostics")
@@ -131,6 +133,20 @@ class Served:
     malformed: int = 0
 
 
+def tcp_port(text: str, lowest: int = 0) -> int:
+    """A TCP port `lowest`..HIGHEST_PORT from the command line (0: a free one, where allowed)."""
+    try:
+        port = int(text)
+    except ValueError:
+        port = -1
+    if not lowest <= port <= HIGHEST_PORT:
+        free = " (0: a free one)" if lowest == 0 else ""
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not valid; expected a TCP port {lowest}..{HIGHEST_PORT}{free}"
+        )
+    return port
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """Options of the view (the `view` console script and `lubrig view`)."""
     p.add_argument(
@@ -147,7 +163,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--port",
-        type=int,
+        type=tcp_port,
         default=DEFAULT_PORT,
         help=f"TCP port (default {DEFAULT_PORT}; 0 picks a free one)",
     )

@@ -261,16 +261,47 @@ _AXIS_KINDS: dict[str, Callable[[str, str, str, Any], Axis]] = {
 }
 
 
+def _axis_size(raw: Any) -> int:
+    """Values a grid axis will take, read from the spec without building them.
+
+    1 for a malformed axis: its own check names what is wrong.
+    """
+    if not isinstance(raw, dict):
+        return 1
+    body = next((raw[kind] for kind in GRID_KINDS if kind in raw), None)
+    if isinstance(body, list):
+        return max(len(body), 1)
+    num = body.get("num") if isinstance(body, dict) else None
+    return num if isinstance(num, int) and not isinstance(num, bool) and num > 1 else 1
+
+
+def _count_text(n: int) -> str:
+    """A count as digits, or as its power of ten when that would be long (10**400 has no str)."""
+    return str(n) if n < 10**15 else f"~1e{int(n.bit_length() * math.log10(2))}"
+
+
+def _check_grid_size(raw_axes: list[Any]) -> None:
+    """Refuse a grid of more than MAX_POINTS points before any axis or point is built.
+
+    The count is the product of the axis sizes the spec states (a `num` of 10**12 would
+    otherwise be expanded, in memory, before it could be counted).
+    """
+    sizes = [_axis_size(raw) for raw in raw_axes]
+    total = math.prod(sizes)
+    if total > MAX_POINTS:
+        raise SpecError(
+            f"the grid has {_count_text(total)} points ({' x '.join(map(_count_text, sizes))}); "
+            f"at most {MAX_POINTS} are allowed"
+        )
+
+
 def _design_values(spec: dict[str, Any], design: str, axes: list[Axis]) -> list[tuple[Any, ...]]:
     if design == "grid":
         if spec.get("samples") is not None or spec.get("seed") is not None:
             raise SpecError(
                 "samples and seed apply to random and lhs designs only; remove them for design=grid"
             )
-        total = math.prod(len(axis.values) for axis in axes)
-        if total > MAX_POINTS:
-            raise SpecError(f"the grid has {total} points; at most {MAX_POINTS} are allowed")
-        return list(itertools.product(*(axis.values for axis in axes)))
+        return list(itertools.product(*(axis.values for axis in axes)))  # size: _check_grid_size
     samples = _count("samples", spec.get("samples"))
     if samples > MAX_POINTS:
         raise SpecError(f"samples={samples} is too many; at most {MAX_POINTS}")
@@ -310,6 +341,8 @@ def parse_spec(data: Any, base_dir: Path | None = None) -> SweepSpec:
     raw_axes = data.get("axes")
     if not isinstance(raw_axes, list) or not raw_axes:
         raise SpecError(f"axes={raw_axes!r} is not valid; expected a non-empty list of axes")
+    if design == "grid":
+        _check_grid_size(raw_axes)
     axes = [_parse_axis(i, raw, design, valid_paths) for i, raw in enumerate(raw_axes)]
     seen: set[str] = set()
     for axis in axes:

@@ -7,7 +7,11 @@
 // Prints one JSON line per advertised channel ({"advertise": ...}) and per message received on a
 // subscribed topic ({"topic", "schemaName", "logTime", "trailingBytes", "message"}), then
 // {"done": true, "complete": bool} once every TOPIC has COUNT messages (default 1), or after
-// SECONDS s at most (complete false). Byte arrays are summarized by their length.
+// SECONDS s at most (complete false). Byte arrays are summarized by their length. The server's
+// status messages and unadvertisements are printed too ({"status": ...}, {"unadvertise": [...]}).
+// A subscription the server refuses as "Unknown channel ID" while the channel is still advertised
+// is sent again (a few times, 0.2 s apart): seen once from the foxglove-sdk server for a channel
+// advertised a moment before, while other channels of the same server worked.
 import wsProtocol from "@foxglove/ws-protocol";
 import rosmsg from "@foxglove/rosmsg";
 import rosmsg2 from "@foxglove/rosmsg2-serialization";
@@ -26,6 +30,9 @@ const client = new FoxgloveClient({
   ws: new WebSocket(url, ["foxglove.sdk.v1", FoxgloveClient.SUPPORTED_SUBPROTOCOL]),
 });
 const channels = new Map(); // subscription id -> {channel, reader}
+const advertised = new Map(); // channel id -> channel, while advertised
+const resubscribed = new Map(); // channel id -> times subscribed again
+const RESUBSCRIBE_LIMIT = 10;
 
 function plain(value) {
   if (typeof value === "bigint") return Number(value);
@@ -45,6 +52,7 @@ client.on("advertise", (list) => {
   for (const channel of list) {
     print({ advertise: { topic: channel.topic, encoding: channel.encoding, schemaName: channel.schemaName,
       schemaEncoding: channel.schemaEncoding } });
+    advertised.set(channel.id, channel);
     if (!wanted.has(channel.topic)) continue;
     let reader = null;
     try {
@@ -55,6 +63,25 @@ client.on("advertise", (list) => {
     const id = client.subscribe(channel.id);
     channels.set(id, { channel, reader });
   }
+});
+client.on("unadvertise", (ids) => {
+  print({ unadvertise: ids });
+  for (const id of ids) advertised.delete(id);
+});
+client.on("status", (status) => {
+  print({ status: { level: status.level, message: status.message } });
+  const unknown = /Unknown channel ID: (\d+)/.exec(status.message || "");
+  if (!unknown) return;
+  const id = Number(unknown[1]);
+  const tries = resubscribed.get(id) || 0;
+  const entry = [...channels.entries()].find(([, e]) => e.channel.id === id);
+  if (!entry || tries >= RESUBSCRIBE_LIMIT) return;
+  resubscribed.set(id, tries + 1);
+  setTimeout(() => {
+    if (!advertised.has(id)) return; // gone: a new advertisement of the topic subscribes anew
+    channels.delete(entry[0]);
+    channels.set(client.subscribe(id), entry[1]);
+  }, 200);
 });
 client.on("message", ({ subscriptionId, timestamp, data }) => {
   const entry = channels.get(subscriptionId);

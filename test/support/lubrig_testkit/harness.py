@@ -6,11 +6,14 @@ every wait is on a condition, with a generous timeout that only guards against a
 
 - ``DomainLease()`` — a ROS_DOMAIN_ID no other test run on this machine holds: an exclusive
   ``flock`` on ``$TMPDIR/lubrig_ros_domains/<id>.lock`` for as long as the lease is open (the
-  kernel drops it when the holder dies, so a crashed run never leaks an id).
+  kernel drops it when the holder dies, so a crashed run never leaks an id). An id that a live
+  process still runs on (a stray of a run killed before its teardown) is passed over.
 - ``ros_env(domain)`` — os.environ with that domain, discovery on localhost, unbuffered output.
 - ``Processes(env, log_dir)`` — starts node processes (``node(name, **params)``, ``module(...)``,
   ``script(...)``, ``command(argv)``), each in its own session with stdout/stderr in log files;
   ``stop_all()`` sends SIGINT, waits, then SIGKILLs the process group of anything left.
+- ``kill_strays(domain)`` — at the end of a lease: names (and kills) any process still on the
+  domain, wherever it came from.
 - ``Probe(domain)`` — an rclpy node in its own context on the domain, spun in a thread, that
   records what it subscribes to and waits on conditions (``wait_for``, ``wait_for_count``).
 - ``wait_until(condition, timeout, what)`` — poll a condition; AssertionError naming it otherwise.
@@ -61,6 +64,41 @@ def wait_until(
         time.sleep(every)
 
 
+def domain_users(domain: int) -> list[str]:
+    """Processes other than this one with ROS_DOMAIN_ID=domain in their environment ("pid argv").
+
+    Read from /proc (this user's processes); a process that ends while it is read is left out.
+    """
+    wanted, users = f"ROS_DOMAIN_ID={domain}".encode(), []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if wanted not in (entry / "environ").read_bytes().split(b"\0"):
+                continue
+            argv = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+        except OSError:
+            continue
+        users.append(f"{entry.name} {argv.strip()}")
+    return users
+
+
+def kill_strays(domain: int, grace: float = 5.0) -> list[str]:
+    """At the end of a lease: processes still on `domain` after `grace` s, each SIGKILLed.
+
+    Whatever started them (procs, a Popen of the test, a child that left its process group or
+    was forked by a node): on a leased domain nothing may outlive the test. Empty when
+    everything ended as it should.
+    """
+    end = time.monotonic() + grace
+    while (left := domain_users(domain)) and time.monotonic() < end:
+        time.sleep(0.1)
+    for user in left:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.kill(int(user.split(" ", 1)[0]), signal.SIGKILL)
+    return left
+
+
 class DomainLease:
     """An exclusive ROS_DOMAIN_ID for this machine while open (flock on a file per id)."""
 
@@ -75,6 +113,9 @@ class DomainLease:
             try:
                 fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
+                f.close()
+                continue
+            if domain_users(domain):  # strays of a run that ended without its teardown
                 f.close()
                 continue
             self._file, self.domain = f, domain
@@ -432,21 +473,33 @@ class Probe:
         """Topic name -> type names in the ROS graph."""
         return dict(self.node.get_topic_names_and_types())
 
-    def call(self, srv_type: type, name: str, request: Any, timeout: float = 20.0) -> Any:
-        """Call a service and wait for its answer."""
+    def call(
+        self, srv_type: type, name: str, request: Any, timeout: float = 20.0, resend: float = 0.0
+    ) -> Any:
+        """Call a service and wait for its answer.
+
+        `resend` (s, idempotent requests only): send the request again while none is answered.
+        Fast DDS drops a response when the server has not yet matched this new client's
+        response reader (it waits 100 ms for that, then warns "failed to send response
+        (timeout)"), and the request is never answered; a start-up on a loaded machine can take
+        longer than that to match. The first answer to any of the copies is taken.
+        """
         client = self.node.create_client(srv_type, name)
         assert client.wait_for_service(timeout_sec=timeout), f"service {name} not available"
-        future = client.call_async(request)
-        assert self.wait_for(future.done, timeout), f"service {name} did not answer"
-        return future.result()
+        futures = [client.call_async(request)]
+        end = time.monotonic() + timeout
+        while not self.wait_for(lambda: any(f.done() for f in futures), min(resend or timeout, timeout)):
+            assert resend and time.monotonic() < end, f"service {name} did not answer"
+            futures.append(client.call_async(request))
+        return next(f for f in futures if f.done()).result()
 
     def set_parameter(self, node: str, name: str, value: Any) -> Any:
-        """SetParameters on /<node>; returns the SetParametersResult."""
+        """SetParameters on /<node>; returns the SetParametersResult (idempotent: resent, see call)."""
         from rcl_interfaces.srv import SetParameters
         from rclpy.parameter import Parameter
 
         request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-        return self.call(SetParameters, f"/{node}/set_parameters", request).results[0]
+        return self.call(SetParameters, f"/{node}/set_parameters", request, resend=5.0).results[0]
 
     def close(self) -> None:
         """Shut the context down and stop the spin thread."""
