@@ -35,6 +35,7 @@ from .kernels import (
     COMPLETED,
     OK,
     PARTIAL_T0,
+    RIG_LAYOUT,
     STATE_SIZE,
     SUBSTEPS,
     specialize,
@@ -81,15 +82,7 @@ class RigIntegrator:
             raise InputError(f"sample_rate={self.sample_rate!r} must be > 0 Hz")
         if not 1e-13 <= self.rtol <= 1e-2:
             raise InputError(f"rtol={self.rtol!r} is outside the valid range [1e-13, 1e-2]")
-        self._rig_array = np.array(
-            [
-                self.rig.mass,
-                self.rig.damping,
-                self.rig.stiffness,
-                self.rig.velocity_factor,
-                self.rig.friction.normal_force,
-            ]
-        )
+        self._rig_array = np.array([float(getattr(self.rig, name)) for name in RIG_LAYOUT])
         law = law_for(self.rig.friction)
         self._stepper, self._evaluator = specialize(law.kernel)  # compiled for this law, bound once
         self._fp = np.ascontiguousarray(law.pack(self.rig.friction), dtype=np.float64)
@@ -107,7 +100,7 @@ class RigIntegrator:
     def equilibrium_displacement(self) -> float:
         """x0 for the initial band velocity, m."""
         mu = float(self._evaluator(np.array([self.initial_band_velocity]), self._fp)[0][0])
-        return mu * self.rig.friction.normal_force / self.rig.stiffness
+        return mu * self.rig.normal_force / self.rig.stiffness
 
     def reset(self, band_velocity: float | None = None, time: float = 0.0) -> None:
         """Back to the initial condition at rig time `time` (s, default 0).
