@@ -118,8 +118,20 @@ def reference_displacement(
 
     length = 1e-2 * n / k
     atol = [1e-3 * rtol * length, 1e-3 * rtol * length * rig.omega0]
+    # steps of at most one sample period: the band has a kink at every sample, and a step across
+    # several of them can send LSODA's step control into a crawl (case 6, physical, 20 s: stuck
+    # near t = 2.4236 s at about 3e-12 s per step on this machine kind, while 19 s ran in 1.6 s;
+    # host-dependent, through the last bits of libm). With the bound: 20 s in 2.5 s of CPU.
     solution = solve_ivp(
-        rhs, (time[0], time[-1]), [x0, 0.0], method="LSODA", t_eval=time, rtol=rtol, atol=atol, jac=jacobian
+        rhs,
+        (time[0], time[-1]),
+        [x0, 0.0],
+        method="LSODA",
+        t_eval=time,
+        rtol=rtol,
+        atol=atol,
+        jac=jacobian,
+        max_step=float(time[1] - time[0]),
     )
     if not solution.success:
         raise RuntimeError(f"reference integration failed: {solution.message}")
