@@ -14,6 +14,7 @@ import math
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
@@ -382,6 +383,22 @@ def _stopping(wait: float) -> bool:
 #: Longest a node's spin_once waits for work (s): how soon it sees its context shut down otherwise.
 SPIN_WAIT_S = 0.5
 
+#: Set while spin_node's executor loop runs (in this process).
+SPINNING = threading.Event()
+
+
+def interrupt(_signum: int, _frame: Any) -> None:
+    """Python's SIGINT handler of a node process (rclpy's own handler runs first and chains to it).
+
+    A KeyboardInterrupt, as Python's default handler raises, except while spin_node's executor
+    loop runs: rclpy has then shut the node's context down already, which ends the loop and stops
+    the node cleanly, whereas a KeyboardInterrupt would be raised inside whatever callback the
+    executor is running (a plant integrating a block), which the executor reports as a failed
+    callback and the node ends with status 1.
+    """
+    if not SPINNING.is_set():
+        raise KeyboardInterrupt
+
 
 def _ignore_sigint() -> None:
     """SIGINT ignored from now on; a KeyboardInterrupt already on its way is swallowed meanwhile."""
@@ -419,6 +436,7 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
             signal.pthread_sigmask(signal.SIG_UNBLOCK, stopping)
         executor = EventsExecutor(context=node.context)
         executor.add_node(node)
+        SPINNING.set()
         while node.context.ok():
             executor.spin_once(timeout_sec=SPIN_WAIT_S)
     except (ParameterError, ParameterException) as exc:
@@ -438,6 +456,7 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
     finally:
         # stopping: a second SIGINT (a terminal's Ctrl-C reaches the whole process group, then the
         # launcher sends its own) must not interrupt the clean-up with a KeyboardInterrupt
+        SPINNING.clear()
         _ignore_sigint()
         if node is not None:
             close = getattr(node, "close", None)

@@ -85,9 +85,11 @@ def _run(name: str) -> int:
     faulthandler.register(signal.SIGUSR1, all_threads=True)
     single_threaded_numerics()
     module = importlib.import_module(f"lubrig_ros.nodes.{name}")
-    # imported: Python's own handler again, which rclpy's signal handling chains to (a SIGINT to a
-    # running node is a KeyboardInterrupt that its main turns into a clean stop, exit status 0)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+    # imported: a Python handler again, which rclpy's signal handling chains to (a SIGINT to a
+    # running node is a clean stop, exit status 0: common.interrupt says how)
+    from .common import interrupt
+
+    signal.signal(signal.SIGINT, interrupt)
     try:
         return int(module.main() or 0)
     except KeyboardInterrupt:  # a second Ctrl-C that came before the node ignored SIGINT: stopped
