@@ -27,13 +27,20 @@ LAUNCHER_NODE = "lubrig_rig_launcher"
 
 
 def _launcher_node() -> tuple[Any, Any]:
-    """A context of its own (the nodes' environment is this process's) and the launcher's node."""
+    """A context of its own (the nodes' environment is this process's) and the launcher's node.
+
+    Without rclpy's signal handlers: a Ctrl-C reaches the launcher's Python handler directly (a
+    KeyboardInterrupt in its main thread, which stops the rig). With them installed by the graph
+    guard's context, a launcher in its realtime wait (plain sleeps, no rclpy) once did not see a
+    SIGINT within 60 s.
+    """
     import rclpy
     from rclpy.context import Context
     from rclpy.node import Node
+    from rclpy.signals import SignalHandlerOptions
 
     context = Context()
-    rclpy.init(context=context)
+    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     return context, Node(LAUNCHER_NODE, context=context)
 
 
@@ -138,18 +145,7 @@ def wait_complete(
                 if stall is not None:
                     stall.append(f"{timing}: {stall_text[0]}")
                 break
-            try:
-                executor.spin_once(timeout_sec=0.1)
-            except RuntimeError:
-                # a Ctrl-C: rclpy's signal handling shut the context down under a take ("Unable
-                # to convert call argument"), which is the interrupt, not a failure; the
-                # shutdown may still be in flight for a moment
-                end = time.monotonic() + 0.5
-                while context.ok() and time.monotonic() < end:
-                    time.sleep(0.01)
-                if context.ok():
-                    raise
-                raise KeyboardInterrupt from None
+            executor.spin_once(timeout_sec=0.1)  # a Ctrl-C: KeyboardInterrupt when the wait ends
     finally:
         executor.shutdown(timeout_sec=1.0)  # before the context: no Executor.__del__ traceback
         node.destroy_node()
