@@ -380,3 +380,41 @@ def test_mcap_from_rosbags_decodes_with_mcap_ros2_support_from_the_schema_alone(
     for field in flags.get_fields_and_field_types():
         if field != "header":
             assert getattr(got, field) == getattr(flags, field), field
+
+
+SOURCE_MSG = Path(__file__).resolve().parents[1] / PACKAGE / "msg"
+
+
+def _sample_lines(name: str) -> dict[str, tuple[str, str]]:
+    """{field: (type, unit)} of the float64 fields of a .msg, its comments reading '# unit: ...'."""
+    out = {}
+    for line in (SOURCE_MSG / f"{name}.msg").read_text().splitlines():
+        head, _, comment = line.partition("#")
+        words = head.split()
+        if len(words) == 2 and words[0] in ("float64", "float64[]"):
+            out[words[1]] = (words[0], comment.strip().partition(":")[0])
+    return out
+
+
+def test_the_msg_files_carry_the_schema_s_sample_fields_in_order_with_their_units():
+    from lubrig_ros.app.plant_output import BLOCK_FIELDS
+    from lubrig_ros.core.schema import SAMPLE_FIELDS, SAMPLE_UNITS
+
+    expected = {f.name: f.unit for f in SAMPLE_FIELDS}
+    state = _sample_lines("RigState")
+    assert {k: unit for k, (_, unit) in state.items()} == expected
+    assert list(msg.RigState.get_fields_and_field_types()) == [
+        "header",
+        "sample_index",
+        "segment",
+        *BLOCK_FIELDS,
+    ]
+    block = _sample_lines("RigStateBlock")
+    assert {k: (kind, unit) for k, (kind, unit) in block.items() if k != "sample_period"} == {
+        **{name: ("float64[]", unit) for name, unit in expected.items()},
+        "lateness": ("float64[]", SAMPLE_UNITS["lateness"]),
+    }
+    arrays = [
+        k for k, kind in msg.RigStateBlock.get_fields_and_field_types().items() if kind.startswith("sequence")
+    ]
+    assert arrays == [*BLOCK_FIELDS, "lateness"]

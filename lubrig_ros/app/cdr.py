@@ -14,6 +14,7 @@ import struct
 from dataclasses import dataclass
 
 from lubrig_ros.core.errors import InputError
+from lubrig_ros.core.schema import SAMPLE_FIELDS
 
 _F64 = {1: struct.Struct("<d"), 0: struct.Struct(">d")}
 _STAMP = {1: struct.Struct("<iI"), 0: struct.Struct(">iI")}
@@ -153,8 +154,8 @@ def sample_span(msgtype: str, data: bytes) -> SampleSpan:
     return SampleSpan(stamp, int(segment), int(first), int(count), float(period) * 1e9, skipped)
 
 
-#: float64[] fields of RigStateBlock before its `skipped` (the 7 sample arrays and `lateness`).
-_BLOCK_ARRAYS = 8
+#: float64[] fields of RigStateBlock before its `skipped`: the sample arrays and `lateness`.
+_BLOCK_ARRAYS = len(SAMPLE_FIELDS) + 1
 
 
 def block_skipped(data: bytes, pos: int) -> int:

@@ -1,4 +1,4 @@
-"""Markdown tables of the contract (app/contract.py) for README.md, docs/topics.md, docs/nodes.md.
+"""Markdown tables of the contract (app/contract.py, core/schema.py) for README.md and docs/.
 
 The documents hold generated blocks between ``<!-- contract:NAME -->`` and
 ``<!-- /contract:NAME -->``; ``python -m lubrig_ros.app.contract_docs`` rewrites them from the
@@ -14,6 +14,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from ..core.schema import SAMPLE_FIELDS, unit_column
 from . import contract
 from .contract import DEFAULT_NAMESPACE, NodeParameter
 
@@ -106,6 +107,20 @@ def friction_law_table() -> str:
     return "\n".join(rows)
 
 
+def sample_field_table() -> str:
+    """The plant's per-sample output fields (core.schema.SAMPLE_FIELDS): column, unit, how computed."""
+    rows = [
+        "| field | table column | unit | symbol | meaning | computed as |",
+        "|---|---|---|---|---|---|",
+    ]
+    for f in SAMPLE_FIELDS:
+        rows.append(
+            f"| `{f.name}` | `{unit_column(f.name, f.unit)}` | {f.unit} | {_cell(f.symbol)} | "
+            f"{_cell(f.meaning)} | `{_cell(f.formula)}` |"
+        )
+    return "\n".join(rows)
+
+
 def _parameters(node: str) -> Callable[[], str]:
     return lambda: parameter_table(node)
 
@@ -117,11 +132,13 @@ BLOCKS: dict[str, Callable[[], str]] = {
     "services": service_table,
     **{f"parameters-{node}": _parameters(node) for node in contract.NODE_PARAMETERS},
     "friction-laws": friction_law_table,
+    "sample-fields": sample_field_table,
 }
 #: Documents (relative to the repository root) and the blocks each must hold.
 DOCUMENTS: dict[str, tuple[str, ...]] = {
     "README.md": ("readme-topics",),
-    "docs/topics.md": ("topics", "services"),
+    "docs/topics.md": ("topics", "services", "sample-fields"),
+    "docs/data.md": ("sample-fields",),
     "docs/nodes.md": ("services", *(f"parameters-{n}" for n in contract.NODE_PARAMETERS), "friction-laws"),
 }
 _BLOCK = re.compile(r"(<!-- contract:([a-z_-]+) -->\n)(.*?)(<!-- /contract:\2 -->)", re.S)

@@ -10,83 +10,121 @@ lateness, into blocks of a fixed length: the realtime plant publishes one block 
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..core.schema import SAMPLE_FIELDS
+from ..core.trajectory import TrajectorySample
+
 _EMPTY = np.zeros(0)
+
+#: The per-sample fields of a PlantSample and the arrays of a PlantBlock, in RigState's and
+#: RigStateBlock's field order (core.schema.SAMPLE_FIELDS).
+BLOCK_FIELDS: tuple[str, ...] = tuple(f.name for f in SAMPLE_FIELDS)
+_FIELD_INDEX = {name: i for i, name in enumerate(BLOCK_FIELDS)}
+
+#: The integrator's output per sample (core.trajectory.TrajectorySample but its time).
+INTEGRATED: tuple[str, ...] = TrajectorySample._fields[1:]
+#: What the formulas of SAMPLE_FIELDS may use, in the order `derive` takes them.
+QUANTITIES: tuple[str, ...] = (*INTEGRATED, "belt_travel", "normal_force")
+
+
+def _compile_formulas() -> Callable[..., tuple[Any, ...]]:
+    """One function (QUANTITIES...) -> the SAMPLE_FIELDS' values, compiled from their formulas."""
+    for f in SAMPLE_FIELDS:
+        names = set(compile(f.formula, f"<{f.name}>", "eval").co_names)
+        if not names <= set(QUANTITIES):
+            raise ImportError(
+                f"core.schema.SAMPLE_FIELDS: the formula of {f.name!r} ({f.formula!r}) uses "
+                f"{sorted(names - set(QUANTITIES))}; valid names: {list(QUANTITIES)}"
+            )
+    body = ", ".join(f"({f.formula})" for f in SAMPLE_FIELDS)
+    source = f"def derive({', '.join(QUANTITIES)}):\n    return ({body},)\n"
+    namespace: dict[str, Any] = {"__builtins__": {}}
+    exec(compile(source, "<core.schema.SAMPLE_FIELDS>", "exec"), namespace)
+    derive: Callable[..., tuple[Any, ...]] = namespace["derive"]
+    return derive
+
+
+#: derive(*QUANTITIES) -> the values of SAMPLE_FIELDS, for floats (one sample) or arrays (a block).
+derive = _compile_formulas()
+
+
+def derive_columns(shape: tuple[int, ...], *quantities: Any) -> dict[str, np.ndarray]:
+    """The SAMPLE_FIELDS of consecutive samples as arrays of `shape` (a constant is broadcast)."""
+    values = derive(*quantities)
+    return {
+        name: v if isinstance(v, np.ndarray) and v.shape == shape else np.full(shape, v, dtype=float)
+        for name, v in zip(BLOCK_FIELDS, values, strict=True)
+    }
+
+
+def check_state_fields(names: tuple[str, ...]) -> None:
+    """RuntimeError unless RigState's fields after its header are sample_index, segment, BLOCK_FIELDS."""
+    if names != ("sample_index", "segment", *BLOCK_FIELDS):
+        raise RuntimeError(
+            f"RigState's fields {names} are not sample_index, segment and core.schema.SAMPLE_FIELDS "
+            f"{BLOCK_FIELDS}: rebuild lubrig_interfaces (make setup)"
+        )
 
 
 class PlantSample(NamedTuple):
-    """One output sample: what the plant publishes (SI units). A tuple: cheap to make per sample."""
+    """One output sample: what the plant publishes (SI units). A tuple: cheap to make per sample.
+
+    `values` holds the SAMPLE_FIELDS in order; each is also an attribute by its name
+    (`sample.displacement`).
+    """
 
     time: float  # s, rig time
-    displacement: float  # m
-    velocity: float  # m/s
-    friction_coefficient: float  # 1
-    band_velocity: float  # m/s, the band velocity this sample was integrated with
-    belt_travel: float  # m, integral of the band velocity since the last reset
-    friction_force: float  # N, μ · normal force
-    relative_velocity: float = 0.0  # m/s, v_band − γ ẋ
+    values: tuple[float, ...]  # BLOCK_FIELDS
     sample_index: int = 0  # samples emitted in this segment before this one
     segment: int = 0  # 0 at start, +1 per reset
 
-
-#: The per-sample arrays of a PlantBlock, in RigStateBlock's field order.
-BLOCK_FIELDS: tuple[str, ...] = (
-    "displacement",
-    "velocity",
-    "friction_coefficient",
-    "friction_force",
-    "band_velocity",
-    "relative_velocity",
-    "belt_travel",
-)
+    def __getattr__(self, name: str) -> float:
+        try:
+            return self.values[_FIELD_INDEX[name]]
+        except KeyError:
+            raise AttributeError(f"PlantSample has no field {name!r}; fields: {BLOCK_FIELDS}") from None
 
 
 @dataclass(frozen=True)
 class PlantBlock:
     """Consecutive output samples of one segment (SI units): one RigStateBlock.
 
-    Sample i has rig time `time[i]` and sample index first_sample_index + i. Realtime blocks also
-    carry each sample's `lateness` (s after its due time) and `skipped`, the sample indices just
-    before first_sample_index that the plant skipped when it fell behind (a declared gap).
+    Sample i has rig time `time[i]` and sample index first_sample_index + i; `columns` holds one
+    array per SAMPLE_FIELDS entry, each also an attribute by its name (`block.displacement`).
+    Realtime blocks also carry each sample's `lateness` (s after its due time) and `skipped`, the
+    sample indices just before first_sample_index that the plant skipped when it fell behind (a
+    declared gap).
     """
 
     segment: int
     first_sample_index: int
     sample_period: float  # s
     time: np.ndarray  # s
-    displacement: np.ndarray  # m
-    velocity: np.ndarray  # m/s
-    friction_coefficient: np.ndarray  # 1
-    friction_force: np.ndarray  # N
-    band_velocity: np.ndarray  # m/s
-    relative_velocity: np.ndarray  # m/s
-    belt_travel: np.ndarray  # m
+    columns: Mapping[str, np.ndarray]  # BLOCK_FIELDS
     lateness: np.ndarray = field(default_factory=lambda: _EMPTY)  # s (realtime only)
     skipped: int = 0
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        columns = self.__dict__.get("columns")
+        if columns is None or name not in columns:
+            raise AttributeError(f"PlantBlock has no field {name!r}; fields: {BLOCK_FIELDS}")
+        column: np.ndarray = columns[name]
+        return column
 
     def __len__(self) -> int:
         return int(self.time.size)
 
     def samples(self) -> list[PlantSample]:
         """The block as PlantSample tuples."""
+        rows = zip(*(self.columns[name].tolist() for name in BLOCK_FIELDS), strict=True)
         return [
-            PlantSample(
-                float(self.time[i]),
-                float(self.displacement[i]),
-                float(self.velocity[i]),
-                float(self.friction_coefficient[i]),
-                float(self.band_velocity[i]),
-                float(self.belt_travel[i]),
-                float(self.friction_force[i]),
-                float(self.relative_velocity[i]),
-                self.first_sample_index + i,
-                self.segment,
-            )
-            for i in range(len(self))
+            PlantSample(t, tuple(row), self.first_sample_index + i, self.segment)
+            for i, (t, row) in enumerate(zip(self.time.tolist(), rows, strict=True))
         ]
 
 
@@ -140,10 +178,10 @@ class BlockBuffer:
         """
         if self.count == 0:
             self.first_index, self.segment = s.sample_index, s.segment
-        row = self._data[:, self.count]
-        row[0], row[1], row[2], row[3] = s.time, s.displacement, s.velocity, s.friction_coefficient
-        row[4], row[5], row[6], row[7] = s.friction_force, s.band_velocity, s.relative_velocity, s.belt_travel
-        row[8] = lateness
+        data = self._data
+        data[0, self.count] = s.time
+        data[1:-1, self.count] = s.values
+        data[-1, self.count] = lateness
         self.count += 1
         return self.flush() if self.count >= self.length else None
 
@@ -155,13 +193,15 @@ class BlockBuffer:
         """The buffered samples as a block (None when empty); the buffer starts over."""
         if self.count == 0:
             return None
-        cols = {name: self._data[i, : self.count].copy() for i, name in enumerate(self._COLUMNS)}
+        data = self._data[:, : self.count].copy()
         block = PlantBlock(
             segment=self.segment,
             first_sample_index=self.first_index,
             sample_period=self.sample_period,
+            time=data[0],
+            columns=dict(zip(BLOCK_FIELDS, data[1:-1], strict=True)),
+            lateness=data[-1],
             skipped=self.skipped,
-            **cols,
         )
         self.count, self.skipped = 0, 0
         return block

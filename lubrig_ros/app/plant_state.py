@@ -32,7 +32,15 @@ from .contract import (
     LAG_POLICIES,
     MODES,
 )
-from .plant_output import BeltTravel, BlockBuffer, PlantBlock, PlantSample
+from .plant_output import (
+    INTEGRATED,
+    BeltTravel,
+    BlockBuffer,
+    PlantBlock,
+    PlantSample,
+    derive,
+    derive_columns,
+)
 from .timing import LatencyHistogram
 
 
@@ -200,21 +208,16 @@ class PlantState:
 
     def emit(self, sample: TrajectorySample, lateness: float) -> None:
         """Emit one sample (wall-clock modes): on_sample, and into the block buffer."""
-        t, x, v, mu, band, relative = sample
-        if not (math.isfinite(x) and math.isfinite(v) and math.isfinite(mu)):
+        t = sample.time
+        if not (
+            math.isfinite(sample.displacement)
+            and math.isfinite(sample.velocity)
+            and math.isfinite(sample.friction_coefficient)
+        ):
             return  # never published (cannot happen after advance's check; kept as the last guard)
-        out = PlantSample(
-            t,
-            x,
-            v,
-            mu,
-            band,
-            self.travel.add(t, band),
-            mu * self.normal_force,
-            relative,
-            self.published,
-            self.segment,
-        )
+        travel = self.travel.add(t, sample.band_velocity)
+        values = derive(*sample[1:], travel, self.normal_force)
+        out = PlantSample(t, values, self.published, self.segment)
         self.published += 1
         self.lag = lateness
         if lateness > self.max_late:
@@ -242,18 +245,18 @@ class PlantState:
         # integrator's own clock adds dt per sample and so depends on where blocks start)
         t = (self.published + np.arange(len(traj), dtype=float)) * self.integrator.dt
         band = traj.band_velocity
+        columns = derive_columns(
+            t.shape,
+            *(getattr(traj, name) for name in INTEGRATED),
+            self.travel.add_many(t, band),
+            self.normal_force,
+        )
         block = PlantBlock(
             segment=self.segment,
             first_sample_index=self.published,
             sample_period=self.period,
             time=t,
-            displacement=traj.displacement,
-            velocity=traj.velocity,
-            friction_coefficient=traj.friction_coefficient,
-            friction_force=traj.friction_coefficient * self.normal_force,
-            band_velocity=band,
-            relative_velocity=traj.relative_velocity,
-            belt_travel=self.travel.add_many(t, band),
+            columns=columns,
         )
         self.published += len(block)
         self.on_block(block)

@@ -31,9 +31,11 @@ __all__ = [
     "MAX_SAMPLES",
     "MIN_SAMPLES_PER_PERIOD",
     "RIG_FIELDS",
+    "SAMPLE_FIELDS",
     "SAMPLE_UNITS",
     "SIMULATION_FIELDS",
     "FieldSpec",
+    "SampleField",
     "band_field",
     "friction_field",
     "unit_column",
@@ -197,20 +199,56 @@ def band_field(name: str) -> FieldSpec | None:
     return None
 
 
-#: SI unit of every per-sample field the plant publishes (RigState, the arrays of RigStateBlock
-#: and BandVelocityBlock), by field name ('1' for a pure number). The field list and its order are
-#: app/plant_output.BLOCK_FIELDS; lateness is RigStateBlock's realtime timing.
-SAMPLE_UNITS: dict[str, str] = {
-    "displacement": "m",
-    "velocity": "m/s",
-    "friction_coefficient": "1",
-    "friction_force": "N",
-    "band_velocity": "m/s",
-    "relative_velocity": "m/s",
-    "belt_travel": "m",
-    "lateness": "s",
-    "time": "s",
-}
+@dataclass(frozen=True)
+class SampleField:
+    """One per-sample output field of the plant: a RigState field and a RigStateBlock array.
+
+    `formula` is a Python expression that gives the field's value from the plant's quantities: the
+    integrator's output sample (core.trajectory.TrajectorySample's fields but its time), the
+    plant's `belt_travel` and the run's `normal_force` (N). The plant compiles every formula into
+    one function, applied to one sample in the wall-clock modes and to whole arrays in the
+    stepped modes (app/plant_output.py). So a new output field is one entry here plus its line in
+    RigState.msg and RigStateBlock.msg (test/test_interfaces.py checks the .msg files against this
+    table: names, order, units).
+    """
+
+    name: str
+    unit: str  # SI, '1' for a pure number
+    symbol: str
+    meaning: str
+    formula: str
+
+
+#: The plant's per-sample output, in RigState's and RigStateBlock's field order.
+SAMPLE_FIELDS: tuple[SampleField, ...] = (
+    SampleField("displacement", "m", "x", "displacement of the mass (spring at rest: 0)", "displacement"),
+    SampleField("velocity", "m/s", "ẋ", "velocity of the mass", "velocity"),
+    SampleField("friction_coefficient", "1", "μ", "friction coefficient μ(v_rel)", "friction_coefficient"),
+    SampleField(
+        "friction_force",
+        "N",
+        "F",
+        "friction force of the interface on the mass, μ N",
+        "friction_coefficient * normal_force",
+    ),
+    SampleField(
+        "band_velocity", "m/s", "v_band", "the band velocity this sample was integrated with", "band_velocity"
+    ),
+    SampleField(
+        "relative_velocity",
+        "m/s",
+        "v_rel",
+        "v_band − γ ẋ (γ: the run's velocity coupling)",
+        "relative_velocity",
+    ),
+    SampleField(
+        "belt_travel", "m", "", "∫ v_band dt over rig time since the last start or reset", "belt_travel"
+    ),
+)
+
+#: SI unit of every per-sample column a bag or a table holds, by name ('1' for a pure number):
+#: the SAMPLE_FIELDS, a sample's rig time and RigStateBlock's realtime lateness.
+SAMPLE_UNITS: dict[str, str] = {f.name: f.unit for f in SAMPLE_FIELDS} | {"lateness": "s", "time": "s"}
 
 
 def unit_column(name: str, unit: str) -> str:

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import operator
 import os
 import signal
 import sys
@@ -54,7 +53,7 @@ from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress, RigState, Rig
 
 from ..app import cdr, contract
 from ..app.plant_diagnostics import HARDWARE_ID
-from ..app.plant_output import BLOCK_FIELDS
+from ..app.plant_output import check_state_fields
 from ..app.plant_session import (
     PlantBlock,
     PlantSample,
@@ -139,7 +138,7 @@ class Plant(Node):
         self.pub_complete = create_publisher(self, "run_complete")
         # RigState serialized by hand (layout from the interface): a third of a message object's cost
         self._state_encoder = cdr.StampedEncoder(RigState.get_fields_and_field_types())
-        self._state_values = operator.attrgetter(*self._state_encoder.names)  # from a PlantSample
+        check_state_fields(self._state_encoder.names)  # encode() takes (index, segment, *values)
         self._state_payload: bytes | None = None  # the newest RigState published
         self._block_msg = RigStateBlock()
         self._progress_msg = FlowProgress()
@@ -352,8 +351,8 @@ class Plant(Node):
         msg.sample_period = block.sample_period
         msg.first_sample_index = block.first_sample_index
         msg.segment = block.segment
-        for name in BLOCK_FIELDS:
-            setattr(msg, name, common.doubles(getattr(block, name)))
+        for name, column in block.columns.items():
+            setattr(msg, name, common.doubles(column))
         msg.lateness = common.doubles(block.lateness)
         msg.skipped = block.skipped
         self.pub_block.publish(msg)
@@ -406,7 +405,7 @@ class Plant(Node):
             sec, nanosec = divmod(self.get_clock().now().nanoseconds, 1_000_000_000)
         else:
             sec, nanosec = self._stamp(s.time)
-        payload = self._state_encoder.encode(sec, nanosec, self._state_values(s))
+        payload = self._state_encoder.encode(sec, nanosec, (s.sample_index, s.segment, *s.values))
         self.pub_state.publish(payload)
         self._state_payload = payload
         self._state_sent = time.monotonic()
