@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from lubrig_ros.app.node_parameters import DEFAULT_BLOCK_LENGTH
-from lubrig_ros.app.plant_output import BeltTravel
+from lubrig_ros.app.plant_output import BeltTravel, trajectory_columns
 from lubrig_ros.bag.layout import typestore
 from lubrig_ros.bag.writer import BagWriter, serialize_string
 from lubrig_ros.core.presets import load_case
@@ -42,15 +42,7 @@ def write_sim_bag(path: Path, duration: float) -> int:
     store = typestore()
     period = 1.0 / config.sample_rate
     normal = config.rig.friction.normal_force
-    values = {
-        "displacement": traj.displacement,
-        "velocity": traj.velocity,
-        "friction_coefficient": traj.friction_coefficient,
-        "friction_force": traj.friction_coefficient * normal,
-        "band_velocity": traj.band_velocity,
-        "relative_velocity": traj.relative_velocity,
-        "belt_travel": BeltTravel().add_many(traj.time, traj.band_velocity),
-    }
+    values = trajectory_columns(traj, BeltTravel().add_many(traj.time, traj.band_velocity), normal)
     types = store.types
     header, stamp, clock = (
         types["std_msgs/msg/Header"],

@@ -215,7 +215,7 @@ def test_column_units_have_one_home() -> None:
     assert all(unit_column(name, SAMPLE_UNITS[name]) == column for name, column in Trajectory.COLUMNS)
     names = [c.name for c in columns_of("lubrig_interfaces/msg/RigStateBlock")]
     assert names[:4] == ["sample_index", "segment", "rig_time_s", "log_time_s"]
-    assert names[4:11] == [unit_column(f, SAMPLE_UNITS[f]) for f in BLOCK_FIELDS]
+    assert names[4 : 4 + len(BLOCK_FIELDS)] == [unit_column(f, SAMPLE_UNITS[f]) for f in BLOCK_FIELDS]
 
 
 def test_realtime_layout_rows(tmp_path: Path) -> None:

@@ -29,6 +29,8 @@ from pathlib import Path
 
 import pytest
 
+from lubrig_ros.app.plant_output import BLOCK_FIELDS
+
 NS = "/lubrig"
 CLIENT_DIR = Path(__file__).parent / "support" / "foxglove_client"
 #: s a test may take in all (start-ups of a few node processes under load, then the client's wait):
@@ -194,6 +196,8 @@ def _ramp_block(k: int, n: int = 100, spikes: frozenset[int] = frozenset()):
     msg.first_sample_index = k * n
     msg.segment = 0
     index = [k * n + i for i in range(n)]
+    for name in BLOCK_FIELDS:  # every sample field, then the ones the view test reads
+        setattr(msg, name, [0.0] * n)
     msg.displacement = [1e-9 * i for i in index]
     msg.velocity = [1e-3 if i in spikes else 2e-9 * i for i in index]
     msg.friction_coefficient = [0.1] * n

@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..core.schema import SAMPLE_FIELDS
-from ..core.trajectory import TrajectorySample
+from ..core.trajectory import Trajectory, TrajectorySample
 
 _EMPTY = np.zeros(0)
 
@@ -69,6 +69,15 @@ def check_state_fields(names: tuple[str, ...]) -> None:
             f"RigState's fields {names} are not sample_index, segment and core.schema.SAMPLE_FIELDS "
             f"{BLOCK_FIELDS}: rebuild lubrig_interfaces (make setup)"
         )
+
+
+def trajectory_columns(
+    traj: Trajectory, belt_travel: np.ndarray, normal_force: float
+) -> dict[str, np.ndarray]:
+    """The SAMPLE_FIELDS of the samples of `traj`, with their belt travel, for a run's normal force (N)."""
+    return derive_columns(
+        traj.time.shape, *(getattr(traj, name) for name in INTEGRATED), belt_travel, normal_force
+    )
 
 
 class PlantSample(NamedTuple):

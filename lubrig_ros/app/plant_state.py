@@ -33,13 +33,12 @@ from .contract import (
     MODES,
 )
 from .plant_output import (
-    INTEGRATED,
     BeltTravel,
     BlockBuffer,
     PlantBlock,
     PlantSample,
     derive,
-    derive_columns,
+    trajectory_columns,
 )
 from .timing import LatencyHistogram
 
@@ -245,12 +244,7 @@ class PlantState:
         # integrator's own clock adds dt per sample and so depends on where blocks start)
         t = (self.published + np.arange(len(traj), dtype=float)) * self.integrator.dt
         band = traj.band_velocity
-        columns = derive_columns(
-            t.shape,
-            *(getattr(traj, name) for name in INTEGRATED),
-            self.travel.add_many(t, band),
-            self.normal_force,
-        )
+        columns = trajectory_columns(traj, self.travel.add_many(t, band), self.normal_force)
         block = PlantBlock(
             segment=self.segment,
             first_sample_index=self.published,

@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 from mcap.reader import make_reader
 
+from lubrig_ros.app.plant_output import BeltTravel, trajectory_columns
 from lubrig_ros.bag.layout import typestore
 from lubrig_ros.bag.writer import BagWriter, serialize_string
 from lubrig_ros.core.presets import load_case
@@ -37,15 +38,7 @@ def write_bag(path: Path) -> None:
     store = typestore()
     n, period = len(traj), 1.0 / config.sample_rate
     normal = config.rig.friction.normal_force
-    values = {
-        "displacement": traj.displacement,
-        "velocity": traj.velocity,
-        "friction_coefficient": traj.friction_coefficient,
-        "friction_force": traj.friction_coefficient * normal,
-        "band_velocity": traj.band_velocity,
-        "relative_velocity": traj.relative_velocity,
-        "belt_travel": np.cumsum(traj.band_velocity) * period,
-    }
+    values = trajectory_columns(traj, BeltTravel().add_many(traj.time, traj.band_velocity), normal)
     header, stamp = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
     writer = BagWriter(path, run_config=config.to_yaml(), flush_messages=5)
     writer.write(f"{NS}/run_config", "std_msgs/msg/String", 0, serialize_string(config.to_yaml()))

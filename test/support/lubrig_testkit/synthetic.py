@@ -34,6 +34,7 @@ import time
 from collections.abc import Sequence
 
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, documented_topics, resolve
+from lubrig_ros.app.plant_output import BLOCK_FIELDS
 
 START_NS = 1_000_000_000  # rig time of sample 0
 PER_SAMPLE_TOPICS = ("state", "band_velocity")
@@ -197,6 +198,8 @@ def _publish_blocks(
         if not skip & set(range(first, first + size)):
             block = RigStateBlock(sample_period=dt, first_sample_index=first, segment=0)
             _stamp(block, stamp)
+            for name in BLOCK_FIELDS:  # every sample field, then chosen values for some
+                setattr(block, name, values)
             block.displacement = values
             block.velocity = [0.5 * v for v in values]
             block.friction_coefficient = [0.0] * size
