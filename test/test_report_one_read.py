@@ -97,3 +97,13 @@ def test_bag_read_once_agrees_with_the_per_call_reader(current_bag: Path) -> Non
     with _reads_of_mcap() as events:
         bag.summary(), bag.arrays(), bag.arrays([next(iter(once))])
     assert events == []
+
+
+def test_bag_info_reads_the_mcap_once(current_bag: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`lubrig bag info BAG --verify`: one open and one map, the summary and the verdict printed."""
+    with _reads_of_mcap() as events:
+        code = main(["bag", "info", str(current_bag), "--verify"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert [e for e, _ in events] == ["open", "mmap.__new__"], events
+    assert "Messages:" in out and "state_block" in out, out

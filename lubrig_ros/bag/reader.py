@@ -92,10 +92,10 @@ def check_bag(bag: str | Path) -> BagSummary:
     Every chunk (CRC), the index, the summary and metadata.yaml against the file, every field
     (lubrig_ros.bag.verify); the summary's topics, counts and times are the file's own.
     """
-    return _summary(verify_bag(bag, full=True, continuity=False), bag)
+    return summarize(verify_bag(bag, full=True, continuity=False), bag)
 
 
-def _summary(v: Verification, bag: str | Path) -> BagSummary:
+def summarize(v: Verification, bag: str | Path) -> BagSummary:
     """The summary of a verified bag; BagError naming its first structural problem."""
     if v.structural:
         first = v.structural[0]
@@ -407,7 +407,7 @@ class Bag:
 
     def summary(self) -> BagSummary:
         """What check_bag gives: topics, counts, times, custom_data; BagError if the file is damaged."""
-        return _summary(self.verification, self.path)
+        return summarize(self.verification, self.path)
 
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[tuple[Stream, int, bytes]]:
         """(stream, log_time_ns, cdr_bytes) in log-time order (ties in file order), as stream_messages.

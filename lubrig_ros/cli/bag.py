@@ -14,7 +14,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from lubrig_ros.bag import BagError, bag_info, repair_bag
+from lubrig_ros.bag import BagError, repair_bag
+from lubrig_ros.bag.reader import summarize
 from lubrig_ros.bag.repair import repaired_path
 from lubrig_ros.bag.verify import Verification, verify_bag
 from lubrig_ros.cli import bag_data
@@ -70,10 +71,7 @@ def _info(args: argparse.Namespace) -> int:
             print(f"lubrig bag info: {_problem_line(v)}", file=sys.stderr)
             return 1
         raise InputError(_problem_line(v))
-    try:
-        summary = bag_info(args.bag)
-    except BagError as exc:
-        raise InputError(str(exc)) from exc
+    summary = summarize(v, args.bag)  # the check above read the bag: no second read
     print(summary.format())
     if args.config and summary.run_config:
         print("--- run configuration ---")
