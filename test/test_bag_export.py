@@ -226,8 +226,9 @@ def test_realtime_layout_rows(tmp_path: Path) -> None:
     store = typestore()
     types = store.types
     header, stamp = types["std_msgs/msg/Header"], types["builtin_interfaces/msg/Time"]
-    fields = ("displacement", "velocity", "friction_coefficient", "friction_force", "band_velocity")
-    fields += ("relative_velocity", "belt_travel")
+    from lubrig_ros.app.plant_output import BLOCK_FIELDS
+
+    fields = BLOCK_FIELDS
     base = 1_800_000_000 * 10**9  # a wall-clock stamp, as a realtime plant's
     writer = BagWriter(tmp_path / "bag", run_config="name: rt\n")
     for k in range(5):

@@ -22,6 +22,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Float64
 
 from lubrig_ros.app import cdr
+from lubrig_ros.app.plant_output import BLOCK_FIELDS
 from lubrig_ros.core.errors import InputError
 
 pytestmark = pytest.mark.ros
@@ -56,6 +57,8 @@ def rig_state():
     m.header.frame_id = "rig"
     m.sample_index = 12345
     m.segment = 2
+    for i, name in enumerate(BLOCK_FIELDS):  # every sample field, then chosen values for some
+        setattr(m, name, 1e-3 * (i + 1))
     m.displacement, m.velocity = 1.25e-6, -3.5e-5
     m.friction_coefficient, m.friction_force = 0.0712, 7.12e-3
     m.band_velocity, m.relative_velocity, m.belt_travel = 1e-4, 1.35e-4, 1.2345e-3
@@ -69,6 +72,8 @@ def rig_state_block(n: int = N):
     m.first_sample_index = 2500
     m.segment = 1
     k = range(n)
+    for j, name in enumerate(BLOCK_FIELDS):  # every sample field, then chosen values for some
+        setattr(m, name, [1e-3 * (j + 1) + 1e-6 * i for i in k])
     m.displacement = [1e-6 * (i % 7 - 3) for i in k]
     m.velocity = [-2e-5 * (i % 5) for i in k]
     m.friction_coefficient = [0.07 + 1e-4 * i for i in k]
