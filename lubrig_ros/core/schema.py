@@ -244,6 +244,7 @@ SAMPLE_FIELDS: tuple[SampleField, ...] = (
     SampleField(
         "belt_travel", "m", "", "∫ v_band dt over rig time since the last start or reset", "belt_travel"
     ),
+    SampleField("normal_force", "N", "N", "normal force pressing the mass on the band", "normal_force"),
 )
 
 #: SI unit of every per-sample column a bag or a table holds, by name ('1' for a pure number):
