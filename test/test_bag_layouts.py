@@ -30,6 +30,7 @@ from lubrig_interfaces.msg import (
     StabilityFlags,
     WaveletFrame,
 )
+from lubrig_ros.app.plant_output import BLOCK_FIELDS, BeltTravel, trajectory_columns
 from lubrig_ros.bag import BagWriter, read_arrays
 from lubrig_ros.bag.writer import serialize_string
 from lubrig_ros.core.presets import load_case
@@ -38,15 +39,7 @@ from lubrig_ros.report import trajectory_from_bag
 from lubrig_ros.report.frombag import recording_summary
 
 NS = "/lubrig"
-FIELDS = (
-    "displacement",
-    "velocity",
-    "friction_coefficient",
-    "friction_force",
-    "band_velocity",
-    "relative_velocity",
-    "belt_travel",
-)
+FIELDS = BLOCK_FIELDS
 
 
 def _stamp(msg, ns: int) -> None:
@@ -54,17 +47,9 @@ def _stamp(msg, ns: int) -> None:
 
 
 def _values(traj, config, k0: int, k1: int) -> dict[str, np.ndarray]:
-    normal = config.rig.friction.normal_force
-    sl = slice(k0, k1)
-    return {
-        "displacement": traj.displacement[sl],
-        "velocity": traj.velocity[sl],
-        "friction_coefficient": traj.friction_coefficient[sl],
-        "friction_force": traj.friction_coefficient[sl] * normal,
-        "band_velocity": traj.band_velocity[sl],
-        "relative_velocity": traj.relative_velocity[sl],
-        "belt_travel": np.cumsum(traj.band_velocity)[sl] / config.sample_rate,
-    }
+    travel = BeltTravel().add_many(traj.time, traj.band_velocity)
+    columns = trajectory_columns(traj, travel, config.rig.friction.normal_force)
+    return {name: column[k0:k1] for name, column in columns.items()}
 
 
 def _write_run(
@@ -157,25 +142,13 @@ def _every_custom_type() -> list[tuple[str, str, object]]:
     state = RigState(
         sample_index=7,
         segment=2,
-        displacement=1e-9,
-        velocity=-2e-8,
-        friction_coefficient=6.5e-3,
-        friction_force=0.013,
-        band_velocity=1e-4,
-        relative_velocity=1.2e-4,
-        belt_travel=3e-3,
+        **{name: 1e-3 * (i + 1) for i, name in enumerate(BLOCK_FIELDS)},
     )
     block = RigStateBlock(
         sample_period=1e-3,
         first_sample_index=11,
         segment=1,
-        displacement=[1.0, 2.0],
-        velocity=[3.0, 4.0],
-        friction_coefficient=[5.0, 6.0],
-        friction_force=[7.0, 8.0],
-        band_velocity=[9.0, 10.0],
-        relative_velocity=[11.0, 12.0],
-        belt_travel=[13.0, 14.0],
+        **{name: [2.0 * i + 1.0, 2.0 * i + 2.0] for i, name in enumerate(BLOCK_FIELDS)},
     )
     band = BandVelocityBlock(sample_period=1e-3, first_sample_index=3, segment=1, band_velocity=[0.5, 0.25])
     progress = FlowProgress(participant="/lubrig/lubrig_recorder", segment=1, samples=1234)

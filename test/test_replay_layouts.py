@@ -10,6 +10,7 @@ import numpy as np
 from rclpy.serialization import serialize_message
 
 from lubrig_interfaces.msg import RigState, RigStateBlock
+from lubrig_ros.app.plant_output import BLOCK_FIELDS
 from lubrig_ros.bag import BagWriter
 from lubrig_ros.bag.writer import typestore
 
@@ -21,14 +22,9 @@ def _block(k0: int, n: int) -> RigStateBlock:
         sample_period=1e-3,
         first_sample_index=k0,
         segment=0,
-        displacement=[float(k) for k in range(k0, k0 + n)],
-        velocity=[0.5] * n,
-        friction_coefficient=[0.0065] * n,
-        friction_force=[0.01] * n,
-        band_velocity=[1e-4] * n,
-        relative_velocity=[1e-4] * n,
-        belt_travel=[0.0] * n,
+        **{name: [0.01 * (i + 1)] * n for i, name in enumerate(BLOCK_FIELDS)},
     )
+    m.displacement = [float(k) for k in range(k0, k0 + n)]
     m.header.stamp.sec, m.header.stamp.nanosec = divmod(T0 + k0 * 1_000_000, 1_000_000_000)
     return m
 
@@ -62,15 +58,7 @@ def test_blocks_and_rig_states_replayed_as_recorded(procs, probe, tmp_path: Path
     for a, b in zip(got, blocks, strict=True):  # every field as recorded
         for name in ("sample_period", "segment", "header"):
             assert getattr(a, name) == getattr(b, name), name
-        for name in (
-            "displacement",
-            "velocity",
-            "friction_coefficient",
-            "friction_force",
-            "band_velocity",
-            "relative_velocity",
-            "belt_travel",
-        ):
+        for name in BLOCK_FIELDS:
             assert list(getattr(a, name)) == list(getattr(b, name)), name
     assert [m.sample_index for m in probe.messages["/lubrig/state"]] == list(range(200))
 

@@ -22,6 +22,7 @@ from matplotlib.image import imread
 
 import lubrig_ros.bag.layout as layout
 from lubrig_ros.app.lateness import DEFAULT_MAX_LAG, rig_timing
+from lubrig_ros.app.plant_output import BLOCK_FIELDS, BeltTravel, trajectory_columns
 from lubrig_ros.bag import BagWriter, read_arrays
 from lubrig_ros.bag.layout import interface_definitions, typestore
 from lubrig_ros.bag.writer import serialize_string
@@ -34,15 +35,7 @@ from lubrig_ros.report.frombag import read_run, recording_summary
 
 NS = "/lubrig"
 BLOCK = "lubrig_interfaces/msg/RigStateBlock"
-FIELDS = (
-    "displacement",
-    "velocity",
-    "friction_coefficient",
-    "friction_force",
-    "band_velocity",
-    "relative_velocity",
-    "belt_travel",
-)
+FIELDS = BLOCK_FIELDS
 START_NS = 1_800_000_000_123_456_789  # wall clock of the segment's start (sample 0 due)
 SKIPS = ((500, 30), (1200, 10))  # (first skipped index, count): declared gaps
 DURATION = 2.0
@@ -89,16 +82,8 @@ def _write(
     config = load_case(1).with_overrides(duration=DURATION)
     traj = simulate(config)
     n, period = len(traj), 1.0 / config.sample_rate
-    normal = config.rig.friction.normal_force
-    values = {
-        "displacement": traj.displacement,
-        "velocity": traj.velocity,
-        "friction_coefficient": traj.friction_coefficient,
-        "friction_force": traj.friction_coefficient * normal,
-        "band_velocity": traj.band_velocity,
-        "relative_velocity": traj.relative_velocity,
-        "belt_travel": np.cumsum(traj.band_velocity) * period,
-    }
+    travel = BeltTravel().add_many(traj.time, traj.band_velocity)
+    values = trajectory_columns(traj, travel, config.rig.friction.normal_force)
     skipped = {first + count: count for first, count in SKIPS} if realtime else {}
     kept = np.ones(n, bool)
     for first, count in SKIPS if realtime else ():
