@@ -9,7 +9,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .errors import BagError
+
 STRUCTURE, CONTINUITY = "structure", "continuity"
+#: A structural problem that means there is no bag at all (missing path, no .mcap): nothing to repair.
+NO_BAG = "no bag"
 
 
 @dataclass(frozen=True)
@@ -99,7 +103,23 @@ class Verification:
     @property
     def structural(self) -> list[Problem]:
         """Problems of the file itself (what repair fixes), not of the recorded data."""
-        return [p for p in self.problems if p.kind == STRUCTURE]
+        return [p for p in self.problems if p.kind in (STRUCTURE, NO_BAG)]
+
+    @property
+    def no_bag(self) -> bool:
+        """There is no bag at the path at all (nothing to repair)."""
+        return bool(self.problems) and self.problems[0].kind == NO_BAG
+
+    def problem_line(self, command: str | None = None) -> str:
+        """The one line naming the first problem: what it is, and repair when it can help."""
+        if self.no_bag:
+            return self.problems[0].text
+        how = f"{command} refuses it: run" if command else "run"
+        return f"{self.verdict()}; {how} `lubrig bag repair {self.bag}`{' first' if command else ''}"
+
+    def error(self, command: str | None = None) -> BagError | None:
+        """The one-line BagError of a bag with a structural problem (None: none); see problem_line."""
+        return BagError(self.problem_line(command)) if self.structural else None
 
     def add(
         self, text: str, offset: int | None = None, topic: str | None = None, kind: str = STRUCTURE

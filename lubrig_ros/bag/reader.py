@@ -28,7 +28,7 @@ from lubrig_ros.bag.findings import Verification
 from lubrig_ros.bag.layout import RUN_CONFIG_KEY, find_mcap, typestore
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
 from lubrig_ros.bag.meta import SCHEMA_ENCODING
-from lubrig_ros.bag.verify import inspect_bag, refusal, verify_bag
+from lubrig_ros.bag.verify import inspect_bag, verify_bag
 
 
 @dataclass
@@ -97,11 +97,9 @@ def check_bag(bag: str | Path) -> BagSummary:
 
 def summarize(v: Verification, bag: str | Path) -> BagSummary:
     """The summary of a verified bag; BagError naming its first structural problem."""
-    if v.structural:
-        first = v.structural[0]
-        if "does not exist" in first.text or "not a bag" in first.text:
-            raise BagError(first.text)
-        raise BagError(f"{v.verdict()}; run `lubrig bag repair {bag}`")
+    problem = v.error()
+    if problem is not None:
+        raise problem
     assert v.mcap is not None
     topics = [TopicSummary(name, v.types.get(name, "?"), n) for name, n in v.counts.items()]
     custom = (v.metadata or {}).get("custom_data") or {}
@@ -401,7 +399,7 @@ class Bag:
 
     def refuse_damaged(self, command: str) -> None:
         """BagError in one line if the file is damaged (as verify.refuse_damaged; gaps are not damage)."""
-        problem = refusal(self.verification, command)
+        problem = self.verification.error(command)
         if problem is not None:
             raise problem
 

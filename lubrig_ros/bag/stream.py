@@ -52,11 +52,9 @@ class OpenedBag:
 def open_bag(bag: str | Path) -> OpenedBag:
     """Open a bag after the cheap structural check; BagError (one line) if it is missing or damaged."""
     v = verify_bag(bag, full=False, continuity=False)
-    if v.structural:
-        first = v.structural[0]
-        if "does not exist" in first.text or "not a bag" in first.text:
-            raise BagError(first.text if str(bag) in first.text else f"bag {str(bag)!r}: {first.text}")
-        raise BagError(f"{v.verdict()}; run `lubrig bag repair {bag}`")
+    problem = v.error()
+    if problem is not None:
+        raise problem
     assert v.mcap is not None
     start, end = _log_time_span(v.mcap)
     custom = (v.metadata or {}).get("custom_data") or {}

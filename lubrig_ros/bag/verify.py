@@ -34,7 +34,7 @@ from pathlib import Path
 
 from lubrig_ros.bag.continuity import INDEXED_TYPES, SPACED_TYPES, check_continuity
 from lubrig_ros.bag.errors import BagError
-from lubrig_ros.bag.findings import CONTINUITY, STRUCTURE, Problem, StreamReport, Verification
+from lubrig_ros.bag.findings import CONTINUITY, NO_BAG, STRUCTURE, Problem, StreamReport, Verification
 from lubrig_ros.bag.layout import MetadataUnreadableError, bag_information, find_mcap
 from lubrig_ros.bag.metacheck import check_metadata, file_facts
 from lubrig_ros.bag.verify_data import ScanState, walk
@@ -49,7 +49,6 @@ __all__ = [
     "StreamReport",
     "Verification",
     "inspect_bag",
-    "refusal",
     "refuse_damaged",
     "verify_bag",
 ]
@@ -61,26 +60,16 @@ def refuse_damaged(bag: str | Path, command: str) -> None:
     Everything of the file (CRCs, index, summary, footer, metadata.yaml), not the continuity of
     the samples (a bag with gaps is reported on; `lubrig bag info` shows them).
     """
-    problem = refusal(verify_bag(bag, full=True, continuity=False), command)
+    problem = verify_bag(bag, full=True, continuity=False).error(command)
     if problem is not None:
         raise problem
-
-
-def refusal(v: Verification, command: str) -> BagError | None:
-    """The one-line BagError a command refusing a damaged bag raises (None: v has no structural problem)."""
-    if not v.structural:
-        return None
-    first = v.structural[0]
-    if "does not exist" in first.text or "not a bag" in first.text:
-        return BagError(first.text)  # the command's own error line names the command
-    return BagError(f"{v.verdict()}; {command} refuses it: run `lubrig bag repair {v.bag}` first")
 
 
 def _directory(v: Verification) -> bool:
     """Check the bag directory and read metadata.yaml; False if there is nothing to verify."""
     bag = v.bag
     if not bag.exists():
-        v.add(f"bag {str(bag)!r} does not exist: give a bag directory or an .mcap file")
+        v.add(f"bag {str(bag)!r} does not exist: give a bag directory or an .mcap file", kind=NO_BAG)
         return False
     if not bag.is_dir():
         return True
@@ -88,7 +77,9 @@ def _directory(v: Verification) -> bool:
     meta_path = bag / "metadata.yaml"
     if not meta_path.exists() and n_mcap != 1:
         v.add(
-            f"expected one .mcap file in the bag directory, found {n_mcap} (and no metadata.yaml): not a bag"
+            f"bag {str(bag)!r}: expected one .mcap file in the bag directory, found {n_mcap} "
+            "(and no metadata.yaml): not a bag",
+            kind=NO_BAG,
         )
         return False
     if not meta_path.is_file():

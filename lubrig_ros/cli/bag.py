@@ -22,18 +22,6 @@ from lubrig_ros.cli import bag_data
 from lubrig_ros.core.errors import InputError
 
 
-def _problem_line(v: Verification) -> str:
-    first = v.problems[0]
-    if "does not exist" in first.text or "not a bag" in first.text:
-        return f"bag {str(v.bag)!r}: {first.text}"
-    return f"{v.verdict()}; run `lubrig bag repair {v.bag}`"
-
-
-def _unreadable(v: Verification) -> bool:
-    text = v.problems[0].text
-    return "does not exist" in text or "not a bag" in text
-
-
 def _print_streams(v: Verification) -> None:
     if not v.streams:
         return
@@ -52,12 +40,12 @@ def _print_problems(v: Verification) -> None:
 
 def _check(args: argparse.Namespace) -> int:
     v = verify_bag(args.bag, full=True)
-    if v.problems and _unreadable(v):  # not a bag at all: exit status 2, as for info
-        raise InputError(_problem_line(v))
+    if v.no_bag:  # not a bag at all: exit status 2, as for info
+        raise InputError(v.problem_line())
     _print_streams(v)
     _print_problems(v)
     if v.problems:
-        print(f"lubrig bag check: {_problem_line(v)}", file=sys.stderr)
+        print(f"lubrig bag check: {v.problem_line()}", file=sys.stderr)
         return 1
     print(v.verdict())
     return 0
@@ -68,9 +56,9 @@ def _info(args: argparse.Namespace) -> int:
     if v.structural:
         if args.verify:
             _print_problems(v)
-            print(f"lubrig bag info: {_problem_line(v)}", file=sys.stderr)
+            print(f"lubrig bag info: {v.problem_line()}", file=sys.stderr)
             return 1
-        raise InputError(_problem_line(v))
+        raise InputError(v.problem_line())
     summary = summarize(v, args.bag)  # the check above read the bag: no second read
     print(summary.format())
     if args.config and summary.run_config:
@@ -80,7 +68,7 @@ def _info(args: argparse.Namespace) -> int:
     if args.verify:
         _print_problems(v)
         if v.problems:
-            print(f"lubrig bag info: {_problem_line(v)}", file=sys.stderr)
+            print(f"lubrig bag info: {v.problem_line()}", file=sys.stderr)
             return 1
         print(v.verdict())
     return 0
