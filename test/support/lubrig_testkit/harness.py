@@ -38,6 +38,42 @@ from typing import IO, Any
 from lubrig_ros.app.discovery import discovery_environment
 
 PYTHON = sys.executable
+_PR_SET_PDEATHSIG = 1
+
+
+def _signal_on_parent_death(parent: int) -> None:
+    """In a child before exec: SIGTERM when the process that started it dies (even by SIGKILL).
+
+    The child's own SIGTERM handling then stops what it started (a launcher its nodes, a
+    recorder its workers), so a test run killed outright leaves no process behind. Linux only;
+    elsewhere nothing happens.
+    """
+    import ctypes
+
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before the request took effect
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
+def child_setup(then: Callable[[], None] | None = None) -> Callable[[], None] | None:
+    """A preexec_fn for a process started from this thread: `then`, and SIGTERM at the parent's death.
+
+    The kernel sends the signal when the *thread* that started the child ends, so it is asked
+    for only from the main thread (a helper thread's children are stopped by the teardown).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return then
+    parent = os.getpid()
+
+    def setup() -> None:
+        _signal_on_parent_death(parent)
+        if then is not None:
+            then()
+
+    return setup
+
+
 BIN = Path(PYTHON).parent
 # 10..99: clear of the default domain 0 and of ids whose DDS ports fall in Linux's ephemeral range
 DOMAIN_IDS = range(10, 100)
@@ -172,7 +208,7 @@ class NodeProcess:
                 stdout=out,
                 stderr=err,
                 start_new_session=True,
-                preexec_fn=preexec_fn,
+                preexec_fn=child_setup(preexec_fn),
             )
 
     @property
@@ -340,7 +376,13 @@ def run(
 ) -> subprocess.CompletedProcess[str]:
     """Run argv to completion in its own session; output captured; the group is killed on timeout."""
     with subprocess.Popen(
-        argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+        argv,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=child_setup(),
     ) as popen:
         try:
             out, err = popen.communicate(timeout=timeout)
