@@ -25,7 +25,7 @@ from lubrig_ros.core.errors import LubrigError
 
 from ..app.selection import RunSelection
 from ..core.params import ParameterError
-from ..core.presets import RunConfig, deep_merge, from_mapping, read_yaml
+from ..core.presets import RunConfig, copy_tree, deep_merge, from_mapping, read_yaml
 
 SPEC_KEYS = ("name", "description", "base", "base_case", "design", "samples", "seed", "wavelet", "axes")
 DESIGNS = ("grid", "random", "lhs")
@@ -354,7 +354,7 @@ def parse_spec(data: Any, base_dir: Path | None = None) -> SweepSpec:
     points = []
     for index, row in enumerate(rows):
         values = {axis.parameter: value for axis, value in zip(axes, row, strict=True)}
-        mapping = copy.deepcopy(base)
+        mapping: dict[str, Any] = copy_tree(base)
         for path, value in values.items():
             _set_path(mapping, path, value)
         mapping["name"] = f"{name}#{index}"
