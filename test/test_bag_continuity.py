@@ -15,6 +15,7 @@ from lubrig_testkit.cli import lubrig
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
+from lubrig_ros.app.plant_output import BLOCK_FIELDS
 from lubrig_ros.bag import BagWriter
 from lubrig_ros.bag.meta import metadata_dict, metadata_texts
 from lubrig_ros.bag.verify import verify_bag
@@ -78,9 +79,8 @@ def _blocks(spec: list[tuple[int, int, int]]) -> list[tuple[int, object]]:
         msg = RigStateBlock(sample_period=1e-3, first_sample_index=first, segment=segment)
         t = 1_000_000_000 + segment * 100_000_000_000 + first * 1_000_000
         _stamp(msg, t)
-        msg.displacement = [float(k) for k in range(first, first + n)]
-        msg.velocity = msg.friction_coefficient = msg.friction_force = msg.displacement
-        msg.band_velocity = msg.relative_velocity = msg.belt_travel = msg.displacement
+        for name in BLOCK_FIELDS:
+            setattr(msg, name, [float(k) for k in range(first, first + n)])
         out.append((t, msg))
     return out
 

@@ -32,6 +32,7 @@ from std_srvs.srv import Trigger
 
 from lubrig_interfaces.msg import BandVelocityBlock, StabilityFlags, WaveletFrame
 from lubrig_ros.app import contract
+from lubrig_ros.app.plant_output import BLOCK_FIELDS
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
 from lubrig_ros.nodes import common
@@ -306,9 +307,10 @@ def test_the_report_reads_a_later_segment_on_the_rigs_clock(tmp_path: Path) -> N
         for k0 in range(0, cut, 50):
             k1 = min(k0 + 50, cut)
             m = RigStateBlock(sample_period=1e-3, first_sample_index=k0, segment=segment)
+            for name in BLOCK_FIELDS:  # every array set, as the plant does
+                setattr(m, name, [0.0] * (k1 - k0))
             for name in FIELDS:
                 setattr(m, name, getattr(traj, name)[k0:k1].tolist())
-            m.friction_force = m.belt_travel = [0.0] * (k1 - k0)  # every array set, as the plant does
             t = origin + k0 * SEC // 1000
             m.header.stamp.sec, m.header.stamp.nanosec = divmod(t, SEC)
             w.write(f"{NS}/state_block", "lubrig_interfaces/msg/RigStateBlock", t, serialize_message(m))
