@@ -93,6 +93,10 @@ class LosslessFlow:
         if self.gate is not None:
             self.gate.report(self.me, self.segment, self.reach)
 
+    def pending(self) -> str | None:
+        """Who has not yet taken everything sent (the replay's end waits for them), or None."""
+        return self._behind(self.reach)
+
     def _stretch(self, span: SampleSpan) -> None:
         self.segment, self.base, self.reach = span.segment, span.first_index, span.first_index
         self.gate = FlowGate(self.window, self.me, self.subscribers)

@@ -205,10 +205,11 @@ class ReplaySession:
     # ---- the player's loop --------------------------------------------------------------
     def next(self, now: float) -> Action:
         """What to do now: publish the next message, wait, or stop (Done)."""
-        if self.paused:
-            return Wait(None) if self.position < self.end or self.loop else Done()
+        if self.paused and (self.position < self.end or self.loop):
+            return Wait(None)
         if not self._wrap(None, now):
-            return Done()
+            pending = self.flow.pending() if self.flow is not None else None
+            return Wait(None, pending) if pending else Done()
         entry = self.entries[self.position]
         wall, bag = self.anchor
         left = wall + (entry.time_ns - bag) / 1e9 / self.rate - now
