@@ -178,3 +178,22 @@ def test_lossless_replay_at_20x_gives_a_slow_subscriber_every_block_once_in_orde
     assert f"lossless to {subscriber}" in replay.output()
     assert probe.wait_for_count(BLOCKS, 150, 60)
     assert firsts(probe) == list(range(0, 3000, 20))
+
+
+def test_lossless_replay_into_the_recorder_records_every_sample_once(procs, tmp_path: Path) -> None:
+    """The recorder as the lossless subscriber (its flow_progress as in a sim run): 100 blocks
+    of 50 samples from sample 0, replayed at 50x, are recorded without a gap or a duplicate."""
+    import signal
+
+    bag = block_bag(tmp_path / "bag", 100, 50, 50_000_000)  # 4.95 s of bag time
+    rec = procs.module("lubrig_ros.nodes.recorder", "-o", str(tmp_path / "again"), "--use-sim-time")
+    rec.wait_for_output("recording", timeout=180)
+    replay = procs.module(
+        "lubrig_ros.nodes.replay", str(bag), "--rate", "50", "--lossless", "lubrig_recorder",
+        "--wait-for-subscribers", "120",
+    )  # fmt: skip
+    assert replay.wait(timeout=300) == 0, replay.log()
+    assert "published 100 messages" in replay.output()
+    assert "lossless to /lubrig/lubrig_recorder" in replay.output()
+    assert rec.stop(signal.SIGINT, timeout=120) == 0, rec.log()
+    assert "/lubrig/state_block: 5000 in 100 messages, 0 missing, 0 duplicates" in rec.output()

@@ -179,3 +179,29 @@ def test_lossless_window_is_checked_against_the_block_length() -> None:
     flow.check_blocks(1000)
     with pytest.raises(InputError, match="--flow-window: flow_window=10000 is too large for block_length=10"):
         flow.check_blocks(10)
+
+
+def test_lossless_loop_waits_for_the_pass_to_be_taken_then_plays_it_again() -> None:
+    flow = LosslessFlow("/lubrig_replay", ("/a",), window=100)
+    s = ReplaySession(blocks(0, 3), origin_ns=T0, now=0.0, rate=1000.0, loop=True, flow=flow)
+    flow.report("/a", 0, 0)
+    assert firsts(s, 1.0) == [0, 10, 20]
+    wait = s.next(2.0)  # the loop starts over only when /a has taken the whole pass
+    assert isinstance(wait, Wait) and "waiting for /a" in wait.reason
+    flow.report("/a", 0, 30)
+    assert firsts(s, 3.0) == [0, 10, 20]
+    flow.report("/a", 0, 30)  # the old pass's count again: says nothing about this one
+    assert isinstance(s.next(4.0), Wait)
+    flow.report("/a", 0, 10)
+    flow.report("/a", 0, 30)
+    assert firsts(s, 5.0) == [0, 10, 20]
+
+
+def test_lossless_end_waits_until_everything_sent_was_taken() -> None:
+    flow = LosslessFlow("/lubrig_replay", ("/a",), window=100)
+    s = ReplaySession(blocks(0, 2), origin_ns=T0, now=0.0, rate=1000.0, flow=flow)
+    flow.report("/a", 0, 0)
+    assert firsts(s, 1.0) == [0, 10]
+    assert isinstance(s.next(2.0), Wait)
+    flow.report("/a", 0, 20)
+    assert isinstance(s.next(2.0), Done)

@@ -14,8 +14,9 @@ that does not continue what was sent (another segment, or another first sample i
 new *stretch*. The replay first waits until every subscriber has taken the whole previous
 stretch, then opens a new gate in which every subscriber counts as having taken the samples
 before the stretch's first one. Within a stretch a report counts only if it lies inside it
-(above its first sample, at most what was sent): older reports still in flight say nothing
-about it.
+(above its first sample, at most what was sent), and a repeat of a subscriber's last count of
+the previous stretch (a heartbeat) only once it has reported another value in this one: older
+reports still in flight say nothing about it.
 
 A subscriber must report its reach (segment, the end of the last block it took), as
 `FlowProgress` documents for the samples taken in order. The recorder counts samples taken in
@@ -49,6 +50,9 @@ class LosslessFlow:
     segment: int = 0
     base: int = 0  # first sample index of the stretch
     reach: int = 0  # one past the last sample sent in the stretch
+    #: per subscriber, the previous stretch's last count (same segment): a repeat of it (a
+    #: heartbeat) says nothing about this stretch until the subscriber has reported another value
+    stale: dict[str, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.subscribers:
@@ -69,6 +73,9 @@ class LosslessFlow:
         self.heard.add(participant)
         if self.gate is None or segment != self.segment or not self.base < samples <= self.reach:
             return new
+        if self.stale.get(participant) == samples:
+            return new
+        self.stale.pop(participant, None)
         return self.gate.report(participant, segment, samples) or new
 
     def hold(self, span: SampleSpan) -> str | None:
@@ -98,6 +105,8 @@ class LosslessFlow:
         return self._behind(self.reach)
 
     def _stretch(self, span: SampleSpan) -> None:
+        same = self.gate is not None and span.segment == self.segment
+        self.stale = dict.fromkeys(self.subscribers, self.reach) if same else {}
         self.segment, self.base, self.reach = span.segment, span.first_index, span.first_index
         self.gate = FlowGate(self.window, self.me, self.subscribers)
         self.gate.report(self.me, self.segment, self.base)
