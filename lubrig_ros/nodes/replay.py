@@ -106,12 +106,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _check_options(args: argparse.Namespace) -> None:
-    """InputError naming a bad --rate, --start, --until or --wait-for-subscribers."""
+    """InputError naming a bad --rate, --start, --until, --flow-window or --wait-for-subscribers."""
     check_rate(args.rate)
     if not (math.isfinite(args.start) and args.start >= 0):
         raise InputError(f"--start {args.start} is invalid: expected seconds >= 0")
     if args.until is not None and not (math.isfinite(args.until) and args.until > args.start):
         raise InputError(f"--until {args.until} is invalid: expected seconds after --start {args.start:g}")
+    if args.flow_window < 1:
+        raise InputError(f"--flow-window {args.flow_window} is invalid: expected samples >= 1")
     if not (math.isfinite(args.wait_for_subscribers) and 0 <= args.wait_for_subscribers <= MAX_WAIT_S):
         raise InputError(
             f"--wait-for-subscribers {args.wait_for_subscribers} is invalid: expected seconds in "
@@ -166,14 +168,12 @@ def lossless_flow(args: argparse.Namespace, types: dict[str, str]) -> tuple[Loss
     paced = resolve(args.namespace, "state_block")
     if not args.lossless:
         return None, paced
+    names = tuple(qualified_name(args.namespace, n) for n in args.lossless)
     if types.get(paced) != STATE_BLOCK:
         raise InputError(
             f"--lossless paces the state blocks ({paced}, {STATE_BLOCK}), which are not replayed; "
             f"replayed: {', '.join(types) or 'nothing'}"
         )
-    names = tuple(qualified_name(args.namespace, n) for n in args.lossless)
-    if isinstance(args.flow_window, bool) or args.flow_window < 1:
-        raise InputError(f"--flow-window {args.flow_window} is invalid: expected samples >= 1")
     return LosslessFlow(f"/{NODE_NAME}", names, args.flow_window), paced
 
 
