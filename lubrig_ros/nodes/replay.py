@@ -46,11 +46,19 @@ STATE_BLOCK = "lubrig_interfaces/msg/RigStateBlock"
 NODE_NAME = "lubrig_replay"
 #: Longest --wait-for-subscribers, s.
 MAX_WAIT_S = 3600.0
+#: How the player is driven while it plays (the epilog of --help).
+CONTROLS = (
+    f"While it plays: `ros2 service call /{NODE_NAME}/pause std_srvs/srv/Trigger` (also resume, "
+    f"toggle_paused, is_paused, play_next: one message of a paused replay), `ros2 param set "
+    f"/{NODE_NAME} rate 4` (time scale) and `ros2 param set /{NODE_NAME} seek 12.5` (the next message "
+    "is the first at or after 12.5 s of the bag). It ends after its last message (--until, the "
+    "bag's end), unless --loop."
+)
 
 
 def build_parser(prog: str = "replay") -> argparse.ArgumentParser:
     """Arguments of the replay node (also used by `lubrig replay`)."""
-    p = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0], epilog=CONTROLS)
     add_arguments(p)
     return p
 
