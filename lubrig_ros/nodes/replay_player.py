@@ -9,7 +9,8 @@ Services (std_srvs/srv/Trigger, relative to the node: /lubrig_replay/pause, ...)
 publish the next message at once; the answer names it). Parameters (set with `ros2 param set`,
 i.e. the node's ``~/set_parameters`` service): ``rate`` (time scale, in (0, MAX_RATE]) and
 ``seek`` (bag time in s from the bag's first log time: the next message is the first at or after
-it). A value outside its range is refused with the reason; the player is unchanged.
+it). Both take an integer too (`ros2 param set ... rate 2`); a value outside its range, or not a
+number, is refused with the reason, and the player is unchanged.
 """
 
 from __future__ import annotations
@@ -54,7 +55,12 @@ class Player:
         node.declare_parameter(
             "rate",
             session.rate,
-            descriptor(f"time scale (2 = twice as fast), in (0, {MAX_RATE:g}]", low=0.0, high=MAX_RATE),
+            descriptor(
+                f"time scale (2 = twice as fast), in (0, {MAX_RATE:g}]",
+                low=0.0,
+                high=MAX_RATE,
+                dynamic_typing=True,
+            ),
         )
         node.declare_parameter(
             "seek",
@@ -64,6 +70,7 @@ class Player:
                 "or after it",
                 low=low,
                 high=high,
+                dynamic_typing=True,
             ),
         )
         node.add_on_set_parameters_callback(self._on_parameters)
