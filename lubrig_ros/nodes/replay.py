@@ -177,6 +177,10 @@ def lossless_flow(args: argparse.Namespace, types: dict[str, str]) -> tuple[Loss
     if not args.lossless:
         return None, paced
     names = tuple(qualified_name(args.namespace, n) for n in args.lossless)
+    if f"/{NODE_NAME}" in names:
+        raise InputError(
+            f"--lossless /{NODE_NAME} is the replay itself; expected its subscribers' node names"
+        )
     if types.get(paced) != STATE_BLOCK:
         raise InputError(
             f"--lossless paces the state blocks ({paced}, {STATE_BLOCK}), which are not replayed; "
