@@ -239,3 +239,19 @@ def test_rig_run_replayed_losslessly_at_20x_is_recorded_again_whole(procs, tmp_p
     old, new = read_arrays(bag, [BLOCKS]), read_arrays(again, [BLOCKS])
     for field in ("sample_index", "displacement", "velocity", "friction_coefficient"):
         assert np.array_equal(old[BLOCKS][field], new[BLOCKS][field]), field
+
+
+def test_lossless_replay_held_by_a_silent_subscriber_says_who_and_stops_on_sigint(
+    procs, tmp_path: Path
+) -> None:
+    """A named subscriber that never reports holds every block: the replay says whom it waits
+    for, publishes nothing, and a Ctrl-C ends it with status 0."""
+    import signal
+
+    bag = block_bag(tmp_path / "bag", 5, 10, 10_000_000)
+    replay = procs.module("lubrig_ros.nodes.replay", str(bag), "--lossless", "nobody", "--flow-window", "100")
+    replay.wait_for_output(
+        "replay: held by flow control: waiting for the first flow_progress of /lubrig/nobody", timeout=120
+    )
+    assert replay.stop(signal.SIGINT, timeout=60) == 0, replay.log()
+    assert "published 0 messages" in replay.output()
