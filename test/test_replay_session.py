@@ -55,22 +55,22 @@ def test_pause_holds_everything_and_resume_goes_on_from_the_paused_bag_time() ->
 def test_step_gives_exactly_the_next_message_and_only_when_paused() -> None:
     s = ReplaySession(entries(3), origin_ns=T0, now=0.0, paused=True)
     assert s.next(50.0) == Wait(None)
-    assert [s.step().data[0] for _ in range(2)] == [0, 1]  # type: ignore[union-attr]
+    assert [s.step(0.0).data[0] for _ in range(2)] == [0, 1]  # type: ignore[union-attr]
     assert s.next(99.0) == Wait(None)
     s.resume(100.0)  # from message 1's time: message 2 is 0.1 s later
     assert drain(s, 100.0999) == []
     assert drain(s, 100.1) == [2]
-    assert "not paused" in str(s.step())
+    assert "not paused" in str(s.step(0.0))
     s.pause(101.0)
-    assert "end" in str(s.step())
+    assert "end" in str(s.step(0.0))
 
 
 def test_seek_goes_to_the_first_message_at_or_after_the_time() -> None:
     s = ReplaySession(entries(), origin_ns=T0, now=0.0, paused=True)
     s.seek(0.55, 0.0)
-    assert s.step().data[0] == 6  # type: ignore[union-attr]
+    assert s.step(0.0).data[0] == 6  # type: ignore[union-attr]
     s.seek(0.3, 0.0)
-    assert s.step().data[0] == 3  # type: ignore[union-attr]
+    assert s.step(0.0).data[0] == 3  # type: ignore[union-attr]
     s.resume(5.0)
     assert drain(s, 5.0) == []  # message 4 is 0.1 s after message 3
     assert drain(s, 5.1) == [4]
@@ -165,9 +165,9 @@ def test_lossless_seek_waits_for_the_previous_stretch_then_starts_a_new_gate() -
     flow.report("/a", 0, 70)
     assert firsts(s, 1.0) == [80]
     s.pause(1.0)
-    assert "waiting for /a" in str(s.step())
+    assert "waiting for /a" in str(s.step(0.0))
     flow.report("/a", 0, 90)
-    assert s.step().span.first_index == 90  # type: ignore[union-attr]
+    assert s.step(0.0).span.first_index == 90  # type: ignore[union-attr]
 
 
 def test_lossless_window_is_checked_against_the_block_length() -> None:
@@ -205,3 +205,9 @@ def test_lossless_end_waits_until_everything_sent_was_taken() -> None:
     assert isinstance(s.next(2.0), Wait)
     flow.report("/a", 0, 20)
     assert isinstance(s.next(2.0), Done)
+
+
+def test_paused_loop_steps_over_the_end_to_the_start() -> None:
+    s = ReplaySession(entries(3), origin_ns=T0, now=0.0, start_s=0.1, loop=True, paused=True)
+    assert [s.step(0.0).data[0] for _ in range(4)] == [1, 2, 1, 2]  # type: ignore[union-attr]
+    assert s.next(1.0) == Wait(None)  # paused at the end of a loop: waiting, not done

@@ -184,7 +184,7 @@ class ReplaySession:
         self.paused_at_ns = t_ns
         self.anchor = (now, t_ns)
 
-    def step(self) -> Entry | str:
+    def step(self, now: float) -> Entry | str:
         """Paused: the next message, published at once (the position moves past it).
 
         Returns the reason as a string when there is none: not paused, at the end, or held by
@@ -192,7 +192,7 @@ class ReplaySession:
         """
         if not self.paused:
             return "not paused: play_next steps a paused replay"
-        if not self._wrap(self.paused_at_ns):
+        if not self._wrap(now):
             return "at the end of the replayed range"
         entry = self.entries[self.position]
         held = self._held(entry)
@@ -207,7 +207,7 @@ class ReplaySession:
         """What to do now: publish the next message, wait, or stop (Done)."""
         if self.paused and (self.position < self.end or self.loop):
             return Wait(None)
-        if not self._wrap(None, now):
+        if not self._wrap(now):
             pending = self.flow.pending() if self.flow is not None else None
             return Wait(None, pending) if pending else Done()
         entry = self.entries[self.position]
@@ -222,17 +222,15 @@ class ReplaySession:
         return Publish(entry)
 
     # ---- internals ----------------------------------------------------------------------
-    def _wrap(self, paused_at: int | None, now: float = 0.0) -> bool:
+    def _wrap(self, now: float) -> bool:
         """True if there is a next message; at the end with loop, back to the start time."""
         if self.position < self.end:
             return True
         if not self.loop or self.first >= self.end:
             return False
         self.position = self.first
-        if paused_at is not None:
-            self.paused_at_ns = self.start_ns
-        else:
-            self.anchor = (now, self.start_ns)
+        self.paused_at_ns = self.start_ns
+        self.anchor = (now, self.start_ns)
         return True
 
     def _held(self, entry: Entry) -> str:

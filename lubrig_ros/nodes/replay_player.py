@@ -115,7 +115,7 @@ class Player:
         return paused, f"{'paused' if paused else 'playing'} at {self._where()}"
 
     def _play_next(self) -> tuple[bool, str]:
-        entry = self.session.step()
+        entry = self.session.step(time.monotonic())
         if isinstance(entry, str):
             return False, entry
         self._publish(entry)
