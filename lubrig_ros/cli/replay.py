@@ -20,6 +20,11 @@ def _run(args: argparse.Namespace) -> int:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `replay` subcommand."""
-    p = subparsers.add_parser("replay", help="republish a bag with its original timing")
+    p = subparsers.add_parser(
+        "replay",
+        help="republish a bag with its original timing; pause, step, seek, rate; lossless",
+        description=(replay.__doc__ or "").splitlines()[0],
+        epilog=replay.CONTROLS,
+    )
     replay.add_arguments(p)
     p.set_defaults(func=_run)

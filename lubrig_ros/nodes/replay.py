@@ -1,10 +1,16 @@
-"""`replay` node: republish a bag with its original timing (scaled by --rate).
+"""`replay` node: republish a bag with its original timing (scaled by --rate), a player you can drive.
 
 The whole bag is verified first (every chunk decompressed and CRC-checked, metadata.yaml
 consistent); a truncated or corrupted bag is refused with one error line before anything is
 published. Messages are published as recorded (serialized bytes, no re-encoding): blocks
 (RigStateBlock, BandVelocityBlock) as blocks, RigState per sample. With --clock, /clock is
 published from the bag's log times (and a recorded /clock topic is not replayed).
+
+The player (app/replay_session.py; its ROS side nodes/replay_player.py) plays from --start to
+--until, pauses, steps one message, seeks and changes its rate through the services and
+parameters of the node /lubrig_replay (docs/recording.md). With --lossless NODE ..., it
+publishes the state blocks no faster than those nodes report on flow_progress that they took
+them (the sim flow control, app/replay_flow.py): no sample is lost to a slow subscriber.
 
 A bag of the legacy layout (sensor_msgs/JointState on <ns>/state, recorded before
 lubrig_interfaces) is refused with one line when its state topic is selected: the current nodes
@@ -23,22 +29,36 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from lubrig_ros.app.cdr import sample_span
 from lubrig_ros.app.contract import DEFAULT_NAMESPACE, STREAM_QOS, documented_topics, resolve
+from lubrig_ros.app.flow import qualified_name
+from lubrig_ros.app.node_parameters import DEFAULT_FLOW_WINDOW
+from lubrig_ros.app.replay_flow import LosslessFlow
+from lubrig_ros.app.replay_session import MAX_RATE, Entry, ReplaySession, check_rate
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.reader import Bag
 from lubrig_ros.core.errors import InputError
 from lubrig_ros.nodes.script import run_script
 
 LEGACY_STATE = "sensor_msgs/msg/JointState"
-#: Fastest --rate (time scale): beyond it a 1 kHz bag is 1 MHz of messages, no replay.
-MAX_RATE = 1000.0
+STATE_BLOCK = "lubrig_interfaces/msg/RigStateBlock"
+#: The replay's node name (its services and parameters are under /lubrig_replay/).
+NODE_NAME = "lubrig_replay"
 #: Longest --wait-for-subscribers, s.
 MAX_WAIT_S = 3600.0
+#: How the player is driven while it plays (the epilog of --help).
+CONTROLS = (
+    f"While it plays: `ros2 service call /{NODE_NAME}/pause std_srvs/srv/Trigger` (also resume, "
+    f"toggle_paused, is_paused, play_next: one message of a paused replay), `ros2 param set "
+    f"/{NODE_NAME} rate 4` (time scale) and `ros2 param set /{NODE_NAME} seek 12.5` (the next message "
+    "is the first at or after 12.5 s of the bag). It ends after its last message (--until, the "
+    "bag's end), unless --loop."
+)
 
 
 def build_parser(prog: str = "replay") -> argparse.ArgumentParser:
     """Arguments of the replay node (also used by `lubrig replay`)."""
-    p = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0], epilog=CONTROLS)
     add_arguments(p)
     return p
 
@@ -49,13 +69,41 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--rate", type=float, default=1.0, help=f"time scale (2 = twice as fast), in (0, {MAX_RATE:g}]"
     )
-    p.add_argument("--loop", action="store_true", help="start over at the end until stopped")
+    p.add_argument("--loop", action="store_true", help="start over at --start after the end until stopped")
     p.add_argument("--topics", nargs="+", metavar="TOPIC", help="replay only these topics")
     p.add_argument(
         "--start", type=float, default=0.0, help="skip the first S seconds of the bag (less than its span)"
     )
+    p.add_argument(
+        "--until",
+        type=float,
+        default=None,
+        metavar="T",
+        help="stop after the last message at or before T seconds of the bag (after --start, within its span)",
+    )
+    p.add_argument(
+        "--paused",
+        action="store_true",
+        help=f"start paused (services /{NODE_NAME}/resume, play_next, ...; docs/recording.md)",
+    )
+    p.add_argument(
+        "--lossless",
+        nargs="+",
+        metavar="NODE",
+        help="publish state blocks no faster than these nodes report taking them on flow_progress "
+        "(fully qualified, or relative to --namespace): none is lost to a slow subscriber",
+    )
+    p.add_argument(
+        "--flow-window",
+        type=int,
+        default=DEFAULT_FLOW_WINDOW,
+        metavar="N",
+        help="with --lossless: samples sent beyond the slowest subscriber's",
+    )
     p.add_argument("--clock", action="store_true", help="publish /clock from the log times")
-    p.add_argument("--namespace", default=DEFAULT_NAMESPACE, help="for relative --topics names")
+    p.add_argument(
+        "--namespace", default=DEFAULT_NAMESPACE, help="for relative --topics and --lossless names"
+    )
     p.add_argument(
         "--wait-for-subscribers",
         type=float,
@@ -66,11 +114,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _check_options(args: argparse.Namespace) -> None:
-    """InputError naming a bad --rate, --start or --wait-for-subscribers."""
-    if not (math.isfinite(args.rate) and 0 < args.rate <= MAX_RATE):
-        raise InputError(f"--rate {args.rate} is invalid: expected a time scale in (0, {MAX_RATE:g}]")
+    """InputError naming a bad --rate, --start, --until, --flow-window or --wait-for-subscribers."""
+    check_rate(args.rate)
     if not (math.isfinite(args.start) and args.start >= 0):
         raise InputError(f"--start {args.start} is invalid: expected seconds >= 0")
+    if args.until is not None and not (math.isfinite(args.until) and args.until > args.start):
+        raise InputError(f"--until {args.until} is invalid: expected seconds after --start {args.start:g}")
+    if args.flow_window < 1:
+        raise InputError(f"--flow-window {args.flow_window} is invalid: expected samples >= 1")
     if not (math.isfinite(args.wait_for_subscribers) and 0 <= args.wait_for_subscribers <= MAX_WAIT_S):
         raise InputError(
             f"--wait-for-subscribers {args.wait_for_subscribers} is invalid: expected seconds in "
@@ -78,13 +129,23 @@ def _check_options(args: argparse.Namespace) -> None:
         )
 
 
+def _check_range(args: argparse.Namespace, span_s: float) -> None:
+    """InputError for a --start or --until outside the bag's span."""
+    if args.start > 0 and args.start >= span_s:
+        raise InputError(
+            f"--start {args.start:g} is invalid: the bag spans {span_s:g} s; expected "
+            f"seconds in [0, {span_s:g})"
+        )
+    if args.until is not None and args.until > span_s:
+        raise InputError(
+            f"--until {args.until:g} is invalid: the bag spans {span_s:g} s; expected seconds in "
+            f"({args.start:g}, {span_s:g}]"
+        )
+
+
 def replayed_types(args: argparse.Namespace, summary: Any) -> dict[str, str]:
     """Topic -> type of what is replayed (bag checked; InputError for what cannot be replayed)."""
-    if args.start > 0 and args.start >= summary.duration_s:
-        raise InputError(
-            f"--start {args.start:g} is invalid: the bag spans {summary.duration_s:g} s; expected "
-            f"seconds in [0, {summary.duration_s:g})"
-        )
+    _check_range(args, summary.duration_s)
     types = {t.name: t.msgtype for t in summary.topics if t.count}
     if args.topics:
         wanted = [resolve(args.namespace, n) for n in args.topics]
@@ -96,6 +157,8 @@ def replayed_types(args: argparse.Namespace, summary: Any) -> dict[str, str]:
         types = {n: types[n] for n in wanted}
     if args.clock:
         types.pop("/clock", None)
+    if args.lossless:  # the live subscribers' reports pace the replay, not the recorded ones
+        types.pop(resolve(args.namespace, "flow_progress"), None)
     legacy = [name for name, msgtype in types.items() if msgtype == LEGACY_STATE and name.endswith("/state")]
     if legacy:
         others = [n for n in types if n not in legacy]
@@ -106,6 +169,39 @@ def replayed_types(args: argparse.Namespace, summary: Any) -> dict[str, str]:
             + (f"; replay its other topics with --topics {' '.join(others)}" if others else "")
         )
     return types
+
+
+def lossless_flow(args: argparse.Namespace, types: dict[str, str]) -> tuple[LosslessFlow | None, str]:
+    """The flow control of --lossless (None without it) and the topic it paces."""
+    paced = resolve(args.namespace, "state_block")
+    if not args.lossless:
+        return None, paced
+    names = tuple(qualified_name(args.namespace, n) for n in args.lossless)
+    if f"/{NODE_NAME}" in names:
+        raise InputError(
+            f"--lossless /{NODE_NAME} is the replay itself; expected its subscribers' node names"
+        )
+    if types.get(paced) != STATE_BLOCK:
+        raise InputError(
+            f"--lossless paces the state blocks ({paced}, {STATE_BLOCK}), which are not replayed; "
+            f"replayed: {', '.join(types) or 'nothing'}"
+        )
+    return LosslessFlow(f"/{NODE_NAME}", names, args.flow_window), paced
+
+
+def entries(bag: Bag, types: dict[str, str], flow: LosslessFlow | None, paced: str) -> list[Entry]:
+    """The messages to replay in log-time order; with flow control, the paced blocks' samples."""
+    out = []
+    longest = 0
+    for stream, t, data in bag.messages(list(types)):
+        span = None
+        if flow is not None and stream.topic == paced:
+            span = sample_span(STATE_BLOCK, data)
+            longest = max(longest, span.count)
+        out.append(Entry(stream.topic, t, data, span))
+    if flow is not None:
+        flow.check_blocks(longest)
+    return out
 
 
 def run(args: argparse.Namespace, bag: Bag | None = None) -> int:
@@ -119,12 +215,15 @@ def run(args: argparse.Namespace, bag: Bag | None = None) -> int:
         bag = Bag(args.bag)
     summary = bag.summary()
     types = replayed_types(args, summary)
+    flow, paced = lossless_flow(args, types)
+    messages = entries(bag, types, flow, paced)
 
     import rclpy
     from rclpy.signals import SignalHandlerOptions
     from rosgraph_msgs.msg import Clock
 
     from lubrig_ros.nodes.interfaces import message_class, qos_profile
+    from lubrig_ros.nodes.replay_player import Player, Spinner
 
     stop = [False]
 
@@ -134,7 +233,7 @@ def run(args: argparse.Namespace, bag: Bag | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node("lubrig_replay")
+    node = rclpy.create_node(NODE_NAME)
     docs = documented_topics(args.namespace)
     pubs: dict[str, Any] = {}
     for name, msgtype in types.items():
@@ -143,53 +242,47 @@ def run(args: argparse.Namespace, bag: Bag | None = None) -> int:
         pubs[name] = node.create_publisher(message_class(msgtype), name, qos)
     clock_qos = qos_profile(docs["/clock"].qos)
     clock_pub = node.create_publisher(Clock, "/clock", clock_qos) if args.clock else None
+    session = ReplaySession(
+        messages,
+        origin_ns=summary.start_ns,
+        now=time.monotonic(),
+        rate=args.rate,
+        start_s=args.start,
+        until_s=args.until,
+        loop=args.loop,
+        paused=args.paused,
+        flow=flow,
+    )
+    player = Player(node, session, pubs, clock_pub, stop)
+    if flow is not None:
+        progress = docs[resolve(args.namespace, "flow_progress")]
+        node.create_subscription(
+            message_class(progress.msgtype), progress.name, player.on_progress, qos_profile(progress.qos)
+        )
+    spinner = Spinner(node)
     deadline = time.monotonic() + args.wait_for_subscribers
     while time.monotonic() < deadline and not stop[0]:
         if all(p.get_subscription_count() > 0 for p in pubs.values()):
             break
         time.sleep(0.05)
-    print(f"replay: {summary.path.parent}: {len(pubs)} topics, rate {args.rate}", flush=True)
-    first = summary.start_ns + round(args.start * 1e9)
-    published = 0
-    clock = Clock()
+    with player.cond:
+        if not session.paused and session.position == session.first:
+            session.anchor = (time.monotonic(), session.start_ns)  # the schedule starts now
+    print(
+        f"replay: {summary.path.parent}: {len(pubs)} topics, rate {args.rate}"
+        + (", paused" if args.paused else "")
+        + (f", lossless to {', '.join(flow.subscribers)}" if flow is not None else ""),
+        flush=True,
+    )
     try:
-        while not stop[0]:
-            t0 = time.monotonic()
-            for stream, t, data in bag.messages(list(pubs)):
-                topic = stream.topic
-                if stop[0]:
-                    break
-                if t < first:
-                    continue
-                if not sleep_until(t0 + (t - first) / 1e9 / args.rate, stop):
-                    break
-                if clock_pub is not None:
-                    clock.clock.sec, clock.clock.nanosec = divmod(t, 1_000_000_000)
-                    clock_pub.publish(clock)
-                pubs[topic].publish(data)
-                published += 1
-            if not args.loop:
-                break
+        player.play()
         time.sleep(0.5)  # let reliable delivery of the last messages complete
     finally:
+        spinner.stop()
         node.destroy_node()
         rclpy.shutdown()
-    print(f"replay: published {published} messages", flush=True)
+    print(f"replay: published {session.published} messages", flush=True)
     return 0
-
-
-def sleep_until(deadline: float, stop: list[bool], step: float = 0.1) -> bool:
-    """Sleep until time.monotonic() reaches deadline, in slices of at most step s.
-
-    Returns False as soon as stop[0] is set (a signal handler returning resumes a plain
-    time.sleep, so a long gap at a low --rate could not be interrupted).
-    """
-    while not stop[0]:
-        left = deadline - time.monotonic()
-        if left <= 0:
-            return True
-        time.sleep(min(step, left))
-    return False
 
 
 def main(argv: Sequence[str] | None = None) -> int:
