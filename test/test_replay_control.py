@@ -21,6 +21,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from lubrig_interfaces.msg import RigStateBlock
+from lubrig_ros.app.plant_output import BLOCK_FIELDS
 from lubrig_ros.bag import BagWriter, check_bag, read_arrays
 
 T0 = 4_000_000_000
@@ -31,7 +32,8 @@ NODE = "lubrig_replay"
 
 def _block(k0: int, n: int, t_ns: int) -> bytes:
     m = RigStateBlock(sample_period=1e-3, first_sample_index=k0, segment=0)
-    m.displacement = [float(k) for k in range(k0, k0 + n)]
+    for name in BLOCK_FIELDS:  # every sample field (a block as the plant writes it)
+        setattr(m, name, [float(k) for k in range(k0, k0 + n)])
     m.header.stamp.sec, m.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
     return serialize_message(m)
 
