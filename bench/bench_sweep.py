@@ -60,6 +60,24 @@ def measure(points: int, duration: float, scheduler: str, workers: int | None, w
     }
 
 
+def validation(points: int) -> None:
+    """Print how long checking a grid of about `points` points takes, per point (no run)."""
+    side = max(1, round(points**0.5))
+    grid = {
+        "name": "validate",
+        "base_case": 1,
+        "axes": [
+            {"parameter": "rig.damping_ratio", "linspace": {"start": 0.01, "stop": 0.5, "num": side}},
+            {"parameter": "rig.natural_frequency", "linspace": {"start": 10.0, "stop": 50.0, "num": side}},
+        ],
+    }
+    parse_spec({**grid, "axes": grid["axes"][:1]})  # first use: case file, imports
+    start, cpu = time.perf_counter(), time.process_time()
+    n = len(parse_spec(grid).points)
+    elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
+    print(f"validation of a {n}-point grid: {elapsed:.2f} s wall, {cpu / n * 1e3:.3f} ms of CPU a point")
+
+
 def main() -> None:
     """Print one line per engine configuration."""
     formatter = argparse.RawDescriptionHelpFormatter
@@ -68,7 +86,13 @@ def main() -> None:
     parser.add_argument("--duration", type=float, default=20.0, help="rig seconds per point")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--no-wavelet", action="store_true")
+    parser.add_argument(
+        "--validate", type=int, metavar="N", help="only time the checking of an N-point grid, then end"
+    )
     args = parser.parse_args()
+    if args.validate:
+        validation(args.validate)
+        return
     print(f"{args.points} points x {args.duration:g} s of rig time, wavelet {not args.no_wavelet}")
     print(
         f"{'engine':10s} {'points/s':>9s} {'simulate':>10s} {'analysis':>10s} {'overhead':>10s}"
