@@ -1,0 +1,111 @@
+"""Rig node parameters for Foxglove clients (`view --allow-parameters`; app/view_access.py).
+
+Read and set through each node's own ROS parameter services (rclpy's AsyncParameterClient), so
+the node's validation decides: a value it refuses is not applied, and its reason goes back to the
+client as an error status while the value returned is the one the node still holds. Clients see
+``<node FQN>.<parameter>``; the nodes are the contract's rig nodes found in the namespace.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from lubrig_ros.app import view_access
+from lubrig_ros.core.errors import InputError
+
+from .view_control import wait_for
+
+Status = Callable[[str], None]
+
+
+def _native(value: Any, current: Any) -> Any:
+    """A client's value in the type of the node's current value where the wire lost it (2 -> 2.0)."""
+    if isinstance(current, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(current, list) and isinstance(value, list) and current and isinstance(current[0], float):
+        return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v for v in value]
+    return value
+
+
+class ParameterBridge:
+    """Parameters of the rig nodes of `namespace`, by the names clients see."""
+
+    def __init__(self, node: Any, namespace: str) -> None:
+        self.node = node
+        self.nodes = view_access.rig_nodes(namespace)
+        self.clients: dict[str, Any] = {}  # node FQN -> AsyncParameterClient, made on the main thread
+        self.namespace = namespace
+
+    def discover(self) -> None:
+        """Parameter clients for the rig nodes now on the graph (called on the node's thread)."""
+        from rclpy.parameter_client import AsyncParameterClient
+
+        for name, ns in self.node.get_node_names_and_namespaces():
+            fqn = view_access.resolve_node(ns, name)
+            if fqn in self.nodes and fqn not in self.clients:
+                self.clients[fqn] = AsyncParameterClient(self.node, fqn)
+
+    def _values(self, fqn: str, names: list[str] | None) -> dict[str, Any]:
+        """Name -> value (Python) of `names` of node `fqn` (all of them for None)."""
+        from rclpy.parameter import parameter_value_to_python
+
+        client = self.clients[fqn]
+        if names is None:
+            names = list(wait_for(client.list_parameters(), f"{fqn}: list parameters").result.names)
+        reply = wait_for(client.get_parameters(names), f"{fqn}: get parameters")
+        return {n: parameter_value_to_python(v) for n, v in zip(names, reply.values, strict=False)}
+
+    def _grouped(self, names: Iterable[str], status: Status) -> dict[str, list[str]]:
+        """Client names grouped by node FQN (unknown nodes named in a status)."""
+        grouped: dict[str, list[str]] = {}
+        for full in names:
+            try:
+                fqn, name = view_access.split_parameter_name(full, self.nodes)
+            except InputError as exc:
+                status(str(exc))
+                continue
+            if fqn not in self.clients:
+                status(f"parameter {full!r}: node {fqn} is not on the ROS graph")
+                continue
+            grouped.setdefault(fqn, []).append(name)
+        return grouped
+
+    def get(self, names: list[str], status: Status) -> Iterable[Any]:
+        """Foxglove Parameters for `names` (every rig node parameter for none)."""
+        import foxglove
+
+        requests = {fqn: None for fqn in list(self.clients)} if not names else self._grouped(names, status)
+        for fqn, wanted in requests.items():
+            try:
+                values = self._values(fqn, wanted)
+            except TimeoutError as exc:
+                status(str(exc))
+                continue
+            for name, value in values.items():
+                if value is not None:  # not set: nothing to show
+                    yield foxglove.Parameter(view_access.parameter_name(fqn, name), value=value)
+
+    def set(self, parameters: list[Any], status: Status) -> Iterable[Any]:
+        """Set each through its node; the values the nodes hold afterwards (refusals in statuses)."""
+        from rclpy.parameter import Parameter
+
+        wanted = {p.name: p.get_value() for p in parameters}
+        grouped = self._grouped(wanted, status)
+        for fqn, names in grouped.items():
+            try:
+                current = self._values(fqn, names)
+                values = {n: _native(wanted[view_access.parameter_name(fqn, n)], current[n]) for n in names}
+                reply = wait_for(
+                    self.clients[fqn].set_parameters([Parameter(n, value=v) for n, v in values.items()]),
+                    f"{fqn}: set parameters",
+                )
+            except (TimeoutError, TypeError, ValueError) as exc:
+                status(f"parameters {names} of {fqn} not set: {exc}")
+                continue
+            for (name, value), result in zip(values.items(), reply.results, strict=False):
+                if not result.successful:
+                    status(f"{fqn} refused {name} = {value!r}: {result.reason}")
+                else:
+                    self.node.get_logger().info(f"view: {fqn} took {name} = {value!r}")
+        return self.get(list(wanted), lambda _m: None)  # unknown names were reported above
