@@ -17,6 +17,9 @@ seen for unstamped messages), and the server broadcasts that time, so Foxglove's
 rig (also for `lubrig replay`, whose messages carry their recorded stamps).
 
 Loopback (127.0.0.1) by default: binding another address (``--host``) is an explicit choice.
+Read-only by default: ``--allow-services``, ``--allow-parameters`` and ``--allow-publish`` each
+open one way back from a client to the rig (app/view_access.py, view_control.py,
+view_parameters.py); without them the server advertises none of those capabilities.
 """
 
 from __future__ import annotations
