@@ -11,6 +11,7 @@ rig did (its states, its log), never on timing.
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 from collections.abc import Callable
 
@@ -57,6 +58,13 @@ def _of(lines: list[dict], key: str) -> list[dict]:
     return [x[key] for x in lines if key in x]
 
 
+def _stops_cleanly(procs) -> None:
+    """Ctrl-C ends the view (its bridges with it) with status 0 and its summary."""
+    view = procs["view"]
+    assert view.stop(signal.SIGINT, 60) == 0, view.log()
+    assert "view: stopped" in view.output()
+
+
 def test_read_only_by_default_advertises_no_way_back(procs, deadline):
     """Without the options: no services, parameters or client publishing are advertised."""
     procs.node("plant", mode="realtime", max_lag=10.0)
@@ -96,6 +104,7 @@ def test_client_pauses_and_resets_the_rig(procs, deadline):
     # the plant names the view as the caller of each (its own log)
     wait_until(lambda: f"{PLANT}/reset called by {NS}/view" in plant.errors(), deadline.left(), "caller")
     assert plant.errors().count(f"{PLANT}/pause called by {NS}/view") == 2, plant.log()
+    _stops_cleanly(procs)
 
 
 def test_client_sets_a_parameter_and_a_bad_value_is_refused_by_the_node(procs, deadline):
@@ -107,6 +116,8 @@ def test_client_sets_a_parameter_and_a_bad_value_is_refused_by_the_node(procs, d
         {"get": [PERTURBATION]},
         {"set": [{"name": PERTURBATION, "value": 0.25}]},
         {"set": [{"name": PERTURBATION, "value": 5.0}]},  # outside -1..1
+        {"set": [{"name": f"{PLANT}.mode", "value": "sim"}]},  # read-only
+        {"set": [{"name": f"{NS}/nobody.x", "value": 1}]},  # no such rig node
         {"get": [PERTURBATION]},
         {"get": []},
     ]
@@ -117,13 +128,19 @@ def test_client_sets_a_parameter_and_a_bad_value_is_refused_by_the_node(procs, d
     assert isinstance(before, float) and before != 0.25, answers
     assert answers[1] == {PERTURBATION: 0.25}  # taken
     assert answers[2] == {PERTURBATION: 0.25}  # refused: unchanged
-    assert answers[3] == {PERTURBATION: 0.25}
-    refusals = [s["message"] for s in _of(lines, "status") if "refused" in s["message"]]
-    assert len(refusals) == 1 and "initial_perturbation = 5.0" in refusals[0], refusals
+    assert answers[3] == {f"{PLANT}.mode": "realtime"}  # refused: unchanged
+    assert answers[4] == {}  # nothing of a node that is not the rig's
+    assert answers[5] == {PERTURBATION: 0.25}
+    statuses = [s["message"] for s in _of(lines, "status")]
+    refusals = [m for m in statuses if "refused" in m]
+    assert len(refusals) == 2 and "initial_perturbation = 5.0" in refusals[0], refusals
     assert PLANT in refusals[0] and "range" in refusals[0].lower(), refusals  # the node's reason
-    every = answers[4]
+    assert "mode = 'sim'" in refusals[1] and "read-only" in refusals[1].lower(), refusals
+    assert any(f"{NS}/nobody.x" in m and f"{PLANT}" in m for m in statuses), statuses  # valid nodes
+    every = answers[6]
     assert every[f"{PLANT}.mode"] == "realtime" and every[PERTURBATION] == 0.25
     assert all(name.startswith(f"{NS}/") for name in every)
+    _stops_cleanly(procs)
 
 
 def test_client_publishes_band_velocity_into_a_rig_in_the_loop(procs, deadline):
