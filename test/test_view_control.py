@@ -80,6 +80,7 @@ def test_client_pauses_and_resets_the_rig(procs, deadline):
     procs.node("belt_drive", mode="realtime")
     url = _serve(procs, deadline, "--allow-services", "--rate", "state=20")
     actions = [
+        {"call": f"{PLANT}/pause", "raw": "00"},  # malformed: a failure, nothing paused
         {"call": f"{PLANT}/pause", "request": {"data": True}},
         {"wait": 500},
         {"call": f"{PLANT}/pause", "request": {"data": False}},
@@ -93,7 +94,8 @@ def test_client_pauses_and_resets_the_rig(procs, deadline):
     assert services[f"{PLANT}/pause"]["request"] == "std_srvs/srv/SetBool_Request"
     assert services[f"{PLANT}/pause"]["encoding"] == "cdr"
     replies = _of(lines, "serviceResponse")
-    assert not _of(lines, "serviceFailure")
+    failures = _of(lines, "serviceFailure")
+    assert len(failures) == 1 and "malformed request" in failures[0]["message"], failures
     assert [r["service"] for r in replies] == [f"{PLANT}/pause", f"{PLANT}/pause", f"{PLANT}/reset"]
     assert [r["message"] for r in replies[:2]] == [
         {"success": True, "message": "paused"},
@@ -105,6 +107,7 @@ def test_client_pauses_and_resets_the_rig(procs, deadline):
     wait_until(lambda: f"{PLANT}/reset called by {NS}/view" in plant.errors(), deadline.left(), "caller")
     assert plant.errors().count(f"{PLANT}/pause called by {NS}/view") == 2, plant.log()
     _stops_cleanly(procs)
+    assert "services: 3 calls forwarded, 1 failed" in procs["view"].output()
 
 
 def test_client_sets_a_parameter_and_a_bad_value_is_refused_by_the_node(procs, deadline):
@@ -164,3 +167,6 @@ def test_client_publishes_band_velocity_into_a_rig_in_the_loop(procs, deadline):
     statuses = [s["message"] for s in _of(lines, "status")]
     assert any("nan" in m.lower() and "finite" in m for m in statuses), statuses
     assert any(f"'{NS}/state' refused" in m and f"{NS}/band_velocity" in m for m in statuses), statuses
+    _stops_cleanly(procs)
+    # the NaN and the refused channel's message dropped; 800 values republished
+    assert f"{NS}/band_velocity: 800 client messages republished, 2 refused" in procs["view"].output()

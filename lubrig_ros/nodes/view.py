@@ -28,7 +28,7 @@ import argparse
 import signal
 import sys
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from lubrig_ros.app import display, layouts, view_access
@@ -148,6 +148,11 @@ class Opened:
     services: list[Any]
     listener: Any  # view_control.Listener, or None when read-only
     encodings: list[str] | None
+    bridges: list[Any] = field(default_factory=list)  # those with a summary() of client actions
+
+    def summary(self) -> str:
+        """What clients did through the opened ways (empty when read-only)."""
+        return "\n".join(b.summary() for b in self.bridges)
 
 
 def open_access(node: Any, view: View, opened: Access) -> Opened:
@@ -159,9 +164,12 @@ def open_access(node: Any, view: View, opened: Access) -> Opened:
 
     capabilities = [foxglove.Capability.Time]
     services: list[Any] = []
+    bridges: list[Any] = []
     if opened.services:
         capabilities.append(foxglove.Capability.Services)
-        services = ServiceBridge(node, view.namespace, view.schemas).services()
+        bridge = ServiceBridge(node, view.namespace, view.schemas)
+        services = bridge.services()
+        bridges.append(bridge)
     parameters = None
     if opened.parameters:
         capabilities.append(foxglove.Capability.Parameters)
@@ -172,10 +180,12 @@ def open_access(node: Any, view: View, opened: Access) -> Opened:
     if opened.publish:
         capabilities.append(foxglove.Capability.ClientPublish)
         band = BandInput(node, view.namespace)
+        bridges.append(band)
     if not (opened.parameters or opened.publish):
-        return Opened(capabilities, services, None, None)
+        return Opened(capabilities, services, None, None, bridges)
     listener = Listener(node, opened, parameters, band)
-    return Opened(capabilities, services, listener, list(view_access.BAND_ENCODINGS) if band else None)
+    encodings = list(view_access.BAND_ENCODINGS) if band else None
+    return Opened(capabilities, services, listener, encodings, bridges)
 
 
 def _announce(args: argparse.Namespace, view: View, port: int, opened: Access) -> None:
@@ -252,6 +262,8 @@ def run(args: argparse.Namespace, ros_args: Sequence[str] = ()) -> int:
     print(f"view: stopped; {len(view.served)} topics served", flush=True)
     if view.served:
         print(view.summary(), flush=True)
+    if opened.summary():
+        print(opened.summary(), flush=True)
     return 0
 
 

@@ -49,6 +49,7 @@ class ServiceBridge:
         self.classes: dict[str, Any] = {s.name: message_class(s.srvtype) for s in self.specs}
         self.clients = {s.name: node.create_client(self.classes[s.name], s.name) for s in self.specs}
         self.calls = 0
+        self.failed = 0
 
     def services(self) -> list[Any]:
         """The foxglove Service objects to advertise."""
@@ -70,7 +71,19 @@ class ServiceBridge:
             services.append(foxglove.Service(spec.name, schema=schema, handler=self.handle))
         return services
 
+    def summary(self) -> str:
+        """Calls forwarded for clients."""
+        return f"  services: {self.calls} calls forwarded, {self.failed} failed"
+
     def handle(self, request: Any) -> bytes:
+        """One call from a client (see `call`); a failure is counted and fails the client's call."""
+        try:
+            return self.call(request)
+        except Exception:
+            self.failed += 1
+            raise
+
+    def call(self, request: Any) -> bytes:
         """One call from a client: the ROS reply, serialized; an exception fails the call."""
         from rclpy.serialization import deserialize_message, serialize_message
 
@@ -87,9 +100,9 @@ class ServiceBridge:
             ros_request = cls.Request()
         if not client.wait_for_service(timeout_sec=CALL_TIMEOUT_S):
             raise RuntimeError(f"{name} is not offered on the ROS graph (is the rig running?)")
-        self.calls += 1
         self.node.get_logger().info(f"view: Foxglove client {request.client_id} calls {name}")
         reply = wait_for(client.call_async(ros_request), name)
+        self.calls += 1
         return bytes(serialize_message(reply))
 
 
@@ -100,9 +113,14 @@ class BandInput:
         self.node = node
         self.namespace = namespace
         self.publisher = create_publisher(node, view_access.BAND_INPUT)
+        self.topic = str(self.publisher.topic_name)  # also for the summary, after the node is gone
         self.accepted: dict[tuple[int, int], str] = {}  # (client, channel) -> encoding
         self.published = 0
         self.refused = 0
+
+    def summary(self) -> str:
+        """Band input republished for clients."""
+        return f"  {self.topic}: {self.published} client messages republished, {self.refused} refused"
 
     def advertise(self, client_id: int, channel: Any) -> str | None:
         """Accept a client channel, or the reason it is refused."""

@@ -12,7 +12,8 @@
 // --actions: a JSON list done one after the other once the server's info has come, each printing
 // what came back (what the Foxglove app's service, parameter and publish panels do):
 //   {"call": SERVICE, "request": {...}}  -> {"serviceResponse": {service, message}} (decoded with
-//                                           the advertised response schema) or {"serviceFailure"}
+//                                           the advertised response schema) or {"serviceFailure"};
+//                                           "raw": HEX sends those bytes as the request instead
 //   {"get": [NAME, ...]} / {"set": [{"name", "value"}, ...]} -> {"parameters": {id, values}}
 //   {"publish": {topic, schemaName, encoding: "cdr"|"json", values: [...], periodMs}} advertises a
 //     client channel (schema "float64 data") and sends {data: value} per value
@@ -87,20 +88,19 @@ async function advertisedService(name) {
 }
 
 let callId = 0;
-async function callService({ call, request }) {
+async function callService({ call, request, raw }) {
   const service = await advertisedService(call);
   const writer = new MessageWriter(parse(service.request.schema, { ros2: true }));
   const id = ++callId;
-  client.sendServiceCallRequest({ serviceId: service.id, callId: id, encoding: service.request.encoding,
-    data: writer.writeMessage(request || {}) });
+  const data = raw !== undefined ? Uint8Array.from(Buffer.from(raw, "hex")) : writer.writeMessage(request || {});
+  client.sendServiceCallRequest({ serviceId: service.id, callId: id, encoding: service.request.encoding, data });
   const answer = await reply(`call ${id}`);
   if (answer.failure !== undefined) {
     print({ serviceFailure: { service: call, message: answer.failure } });
     return;
   }
   const reader = new MessageReader(parse(service.response.schema, { ros2: true }));
-  const data = answer.data;
-  const bytes = new Uint8Array(data.buffer, data.byteOffset, data.byteLength);
+  const bytes = new Uint8Array(answer.data.buffer, answer.data.byteOffset, answer.data.byteLength);
   print({ serviceResponse: { service: call, message: plain(reader.readMessage(bytes)) } });
 }
 
