@@ -146,6 +146,34 @@ def test_client_sets_a_parameter_and_a_bad_value_is_refused_by_the_node(procs, d
     _stops_cleanly(procs)
 
 
+def test_parameter_changes_made_elsewhere_reach_a_subscribed_client(procs, probe, deadline):
+    """--allow-parameters: a change by another ROS node (here the test's probe) is pushed."""
+    import threading
+
+    procs.node("plant", mode="realtime", max_lag=10.0)
+    url = _serve(procs, deadline, "--allow-parameters")
+    stop = threading.Event()
+
+    def set_elsewhere() -> None:  # again and again: one set lands after the client subscribed
+        while not stop.wait(1.0):
+            assert probe.set_parameter("lubrig/plant", "initial_perturbation", -0.5).successful
+
+    worker = threading.Thread(target=set_elsewhere, daemon=True)
+    worker.start()
+    actions = [
+        {"wait": 1000},
+        {"subscribe": [PERTURBATION]},
+        {"untilParameter": {"name": PERTURBATION, "value": -0.5}},
+    ]
+    try:
+        lines = _client(url, deadline, procs.logs, actions)
+    finally:
+        stop.set()
+        worker.join(30)
+    updates = [p for update in _of(lines, "parameterUpdate") for p in update]
+    assert updates and all(p == {"name": PERTURBATION, "value": -0.5} for p in updates), updates
+
+
 def test_client_publishes_band_velocity_into_a_rig_in_the_loop(procs, deadline):
     """--allow-publish: Float64 on <ns>/band_velocity drives the plant; other topics and NaN refused."""
     procs.node("plant", mode="rig_in_loop", max_lag=10.0)

@@ -162,7 +162,18 @@ class Listener(ServerListener):
         self.access = access
         self.parameters = parameters
         self.band = band
-        self.server: Any = None  # set once the server runs; statuses go to every client
+        self._server: Any = None
+
+    @property
+    def server(self) -> Any:
+        """The running server (None before): statuses go to every client."""
+        return self._server
+
+    @server.setter
+    def server(self, server: Any) -> None:
+        self._server = server
+        if self.parameters is not None:
+            self.parameters.server = server
 
     def status(self, message: str, error: bool = True) -> None:
         """Tell the clients (and the log)."""
@@ -202,6 +213,16 @@ class Listener(ServerListener):
         if self.parameters is None:
             return []
         return list(self.parameters.get(param_names, self.status))
+
+    def on_parameters_subscribe(self, param_names: list[str]) -> None:
+        """Clients want changes of these parameters pushed."""
+        if self.parameters is not None:
+            self.parameters.subscribe(param_names, True)
+
+    def on_parameters_unsubscribe(self, param_names: list[str]) -> None:
+        """No client wants changes of these parameters any more."""
+        if self.parameters is not None:
+            self.parameters.subscribe(param_names, False)
 
     def on_set_parameters(
         self, client: Any, parameters: list[Any], request_id: str | None = None

@@ -3,11 +3,14 @@
 Read and set through each node's own ROS parameter services (rclpy's AsyncParameterClient), so
 the node's validation decides: a value it refuses is not applied, and its reason goes back to the
 client as an error status while the value returned is the one the node still holds. Clients see
-``<node FQN>.<parameter>``; the nodes are the contract's rig nodes found in the namespace.
+``<node FQN>.<parameter>``; the nodes are the contract's rig nodes found in the namespace. A
+change of a parameter a client subscribed to, made by anyone (``ros2 param set``, another
+client), is pushed to the clients from the node's ``/parameter_events``.
 """
 
 from __future__ import annotations
 
+import array
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -28,6 +31,13 @@ def _native(value: Any, current: Any) -> Any:
     return value
 
 
+def _wire(value: Any) -> Any:
+    """A ROS parameter value as foxglove takes it (arrays as lists)."""
+    if isinstance(value, tuple | array.array):
+        return list(value)
+    return value
+
+
 class ParameterBridge:
     """Parameters of the rig nodes of `namespace`, by the names clients see."""
 
@@ -36,6 +46,37 @@ class ParameterBridge:
         self.nodes = view_access.rig_nodes(namespace)
         self.clients: dict[str, Any] = {}  # node FQN -> AsyncParameterClient, made on the main thread
         self.namespace = namespace
+        self.subscribed: set[str] = set()  # client names whose changes clients want pushed
+        self.server: Any = None  # set once the server runs
+        from rcl_interfaces.msg import ParameterEvent
+        from rclpy.qos import qos_profile_parameter_events
+
+        node.create_subscription(
+            ParameterEvent, "/parameter_events", self._on_event, qos_profile_parameter_events
+        )
+
+    def subscribe(self, names: list[str], on: bool) -> None:
+        """Clients want changes of `names` pushed (on) or no longer (off)."""
+        if on:
+            self.subscribed.update(names)
+        else:
+            self.subscribed.difference_update(names)
+
+    def _on_event(self, event: Any) -> None:
+        """A rig node's parameters changed (whoever set them): push the subscribed ones."""
+        import foxglove
+        from rclpy.parameter import parameter_value_to_python
+
+        if event.node not in self.nodes or self.server is None:
+            return
+        pushed = []
+        for p in [*event.new_parameters, *event.changed_parameters]:
+            full = view_access.parameter_name(event.node, p.name)
+            value = parameter_value_to_python(p.value)
+            if full in self.subscribed and value is not None:
+                pushed.append(foxglove.Parameter(full, value=_wire(value)))
+        if pushed:
+            self.server.publish_parameter_values(pushed)
 
     def discover(self) -> None:
         """Parameter clients for the rig nodes now on the graph (called on the node's thread)."""
@@ -84,7 +125,7 @@ class ParameterBridge:
                 continue
             for name, value in values.items():
                 if value is not None:  # not set: nothing to show
-                    yield foxglove.Parameter(view_access.parameter_name(fqn, name), value=value)
+                    yield foxglove.Parameter(view_access.parameter_name(fqn, name), value=_wire(value))
 
     def set(self, parameters: list[Any], status: Status) -> Iterable[Any]:
         """Set each through its node; the values the nodes hold afterwards (refusals in statuses)."""

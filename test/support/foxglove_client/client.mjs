@@ -19,6 +19,8 @@
 //     client channel (schema "float64 data") and sends {data: value} per value
 //   {"until": {topic, field, value}}       waits for a message on TOPIC (one of the TOPICs) whose
 //                                           FIELD equals VALUE -> {"until": {..., sampleIndex}}
+//   {"subscribe": [NAME, ...]}            subscribes to parameter updates (printed as {"parameterUpdate"})
+//   {"untilParameter": {name, value}}      waits for an update of NAME to VALUE
 //   {"wait": MS} Byte arrays are summarized by their length. The server's
 // status messages and unadvertisements are printed too ({"status": ...}, {"unadvertise": [...]}).
 // A subscription the server refuses as "Unknown channel ID" while the channel is still advertised
@@ -137,6 +139,11 @@ async function runActions() {
     else if (action.get || action.set) await parameters(action);
     else if (action.publish) await publish(action.publish);
     else if (action.until) await until(action.until);
+    else if (action.subscribe) client.subscribeParameterUpdates(action.subscribe);
+    else if (action.untilParameter) {
+      await new Promise((resolve) => parameterUntils.push({ ...action.untilParameter, resolve }));
+      print({ untilParameter: action.untilParameter });
+    }
     else if (action.wait) await new Promise((r) => setTimeout(r, action.wait));
   }
   actionsDone = true;
@@ -165,7 +172,21 @@ client.on("advertiseServices", (list) => {
 });
 client.on("serviceCallResponse", (r) => answered(`call ${r.callId}`, { data: r.data }));
 client.on("serviceCallFailure", (r) => answered(`call ${r.callId}`, { failure: r.message }));
-client.on("parameterValues", (event) => answered(`parameters ${event.id}`, event.parameters));
+const parameterUntils = []; // {name, value, resolve}
+client.on("parameterValues", (event) => {
+  if (event.id !== undefined && waiting.has(`parameters ${event.id}`)) {
+    answered(`parameters ${event.id}`, event.parameters);
+    return;
+  }
+  print({ parameterUpdate: event.parameters.map((p) => ({ name: p.name, value: p.value })) });
+  for (let i = parameterUntils.length - 1; i >= 0; i--) {
+    const u = parameterUntils[i];
+    if (event.parameters.some((p) => p.name === u.name && p.value === u.value)) {
+      parameterUntils.splice(i, 1);
+      u.resolve();
+    }
+  }
+});
 
 client.on("error", (err) => print({ error: String(err && err.message ? err.message : err) }));
 client.on("advertise", (list) => {
