@@ -14,6 +14,8 @@ executor (the main thread) takes it, and every client action is logged with the 
 from __future__ import annotations
 
 import threading
+import time
+from collections.abc import Callable
 from typing import Any
 
 from foxglove.websocket import ServerListener
@@ -29,14 +31,32 @@ from .view_topics import MessageSchemas
 CALL_TIMEOUT_S = 10.0
 
 
-def wait_for(future: Any, what: str, timeout_s: float = CALL_TIMEOUT_S) -> Any:
-    """The result of an rclpy future completed by the executor on another thread; TimeoutError."""
+#: s after which an idempotent request (parameters) is sent again while none is answered: Fast DDS
+#: drops a reply when the server has not yet matched a new client's reply reader
+RESEND_S = 2.0
+
+
+def wait_for(call: Callable[[], Any], what: str, idempotent: bool = False) -> Any:
+    """The reply to `call()` (an rclpy future completed by the executor on another thread).
+
+    An idempotent request is sent again every RESEND_S while none is answered (the first reply
+    is taken); TimeoutError after CALL_TIMEOUT_S.
+    """
     done = threading.Event()
-    future.add_done_callback(lambda _f: done.set())
-    if not done.wait(timeout_s):
-        future.cancel()
-        raise TimeoutError(f"{what}: no reply within {timeout_s:g} s")
-    return future.result()
+    futures: list[Any] = []
+    end = time.monotonic() + CALL_TIMEOUT_S
+    while not done.is_set():
+        left = end - time.monotonic()
+        if left <= 0:
+            for future in futures:
+                future.cancel()
+            raise TimeoutError(f"{what}: no reply within {CALL_TIMEOUT_S:g} s")
+        if not futures or idempotent:
+            future = call()
+            future.add_done_callback(lambda _f: done.set())
+            futures.append(future)
+        done.wait(min(left, RESEND_S) if idempotent else left)
+    return next(f for f in futures if f.done()).result()
 
 
 class ServiceBridge:
@@ -101,7 +121,7 @@ class ServiceBridge:
         if not client.wait_for_service(timeout_sec=CALL_TIMEOUT_S):
             raise RuntimeError(f"{name} is not offered on the ROS graph (is the rig running?)")
         self.node.get_logger().info(f"view: Foxglove client {request.client_id} calls {name}")
-        reply = wait_for(client.call_async(ros_request), name)
+        reply = wait_for(lambda: client.call_async(ros_request), name)
         self.calls += 1
         return bytes(serialize_message(reply))
 

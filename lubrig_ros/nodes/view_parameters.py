@@ -11,6 +11,7 @@ client), is pushed to the clients from the node's ``/parameter_events``.
 from __future__ import annotations
 
 import array
+import functools
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -93,8 +94,9 @@ class ParameterBridge:
 
         client = self.clients[fqn]
         if names is None:
-            names = list(wait_for(client.list_parameters(), f"{fqn}: list parameters").result.names)
-        reply = wait_for(client.get_parameters(names), f"{fqn}: get parameters")
+            listed = wait_for(client.list_parameters, f"{fqn}: list parameters", idempotent=True)
+            names = list(listed.result.names)
+        reply = wait_for(lambda: client.get_parameters(names), f"{fqn}: get parameters", idempotent=True)
         return {n: parameter_value_to_python(v) for n, v in zip(names, reply.values, strict=False)}
 
     def _grouped(self, names: Iterable[str], status: Status) -> dict[str, list[str]]:
@@ -137,10 +139,9 @@ class ParameterBridge:
             try:
                 current = self._values(fqn, names)
                 values = {n: _native(wanted[view_access.parameter_name(fqn, n)], current[n]) for n in names}
-                reply = wait_for(
-                    self.clients[fqn].set_parameters([Parameter(n, value=v) for n, v in values.items()]),
-                    f"{fqn}: set parameters",
-                )
+                request = [Parameter(n, value=v) for n, v in values.items()]
+                send = functools.partial(self.clients[fqn].set_parameters, request)
+                reply = wait_for(send, f"{fqn}: set parameters", idempotent=True)
             except (TimeoutError, TypeError, ValueError) as exc:
                 status(f"parameters {names} of {fqn} not set: {exc}")
                 continue
