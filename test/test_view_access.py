@@ -73,3 +73,11 @@ def test_band_values_finite_or_refused():
     for encoding, data in refused:
         with pytest.raises(InputError, match="band input"):
             view_access.band_value(encoding, data)
+
+
+def test_band_input_only_to_a_rig_in_the_loop_plant():
+    assert view_access.band_mode_problem("/lubrig", "rig_in_loop") is None
+    for mode in ("sim", "lockstep", "realtime"):
+        problem = view_access.band_mode_problem("/lubrig", mode)
+        assert problem is not None and repr(mode) in problem and "rig_in_loop" in problem
+    assert "no plant /rig2/plant answered" in str(view_access.band_mode_problem("/rig2", None))

@@ -174,6 +174,18 @@ def test_parameter_changes_made_elsewhere_reach_a_subscribed_client(procs, probe
     assert updates and all(p == {"name": PERTURBATION, "value": -0.5} for p in updates), updates
 
 
+def test_band_input_is_refused_beside_a_belt_drive(procs, deadline):
+    """--allow-publish: a realtime plant (belt_drive's samples) takes no band input from a client."""
+    procs.node("plant", mode="realtime", max_lag=10.0)
+    url = _serve(procs, deadline, "--allow-publish")
+    band = {"topic": f"{NS}/band_velocity", "schemaName": "std_msgs/msg/Float64", "encoding": "cdr"}
+    lines = _client(url, deadline, procs.logs, [{"publish": {**band, "values": [2.5e-7] * 3}}, {"wait": 500}])
+    statuses = [s["message"] for s in _of(lines, "status")]
+    assert any("mode 'realtime'" in m and "rig_in_loop" in m for m in statuses), statuses
+    _stops_cleanly(procs)
+    assert f"{NS}/band_velocity: 0 client messages republished, 3 refused" in procs["view"].output()
+
+
 def test_client_publishes_band_velocity_into_a_rig_in_the_loop(procs, deadline):
     """--allow-publish: Float64 on <ns>/band_velocity drives the plant; other topics and NaN refused."""
     procs.node("plant", mode="rig_in_loop", max_lag=10.0)

@@ -7,8 +7,8 @@ Read-only is the default. Three options open a way back from the client to the r
 - ``parameters``: the parameters of the contract's rig nodes (belt_drive, plant, analysis) read
   and set through their ROS parameter services, named ``<node FQN>.<parameter>`` as Foxglove's
   ROS bridge names them (``/lubrig/plant.rtol``); a node refuses a bad value itself;
-- ``publish``: band input, std_msgs/Float64 on ``<ns>/band_velocity`` only (what a rig-in-the-loop
-  plant integrates); every other client channel is refused.
+- ``publish``: band input, std_msgs/Float64 on ``<ns>/band_velocity`` only, and only while the
+  plant runs rig_in_loop (what it integrates); every other client channel is refused.
 
 Names, types and the checks that need no ROS live here; nodes/view_control.py does the ROS side.
 """
@@ -23,7 +23,7 @@ from lubrig_ros.core.errors import InputError
 
 from . import cdr
 from .contract import SERVICES, Service, Topic, resolve, topic
-from .node_parameters import NODE_PARAMETERS
+from .node_parameters import MODES, NODE_PARAMETERS
 
 #: Between a node's fully qualified name and a parameter name (Foxglove's ROS 2 bridge convention).
 PARAMETER_SEPARATOR = "."
@@ -31,6 +31,13 @@ PARAMETER_SEPARATOR = "."
 BAND_INPUT = "band_velocity"
 #: Message encodings a client may publish band input in: ROS 2 CDR, or JSON ``{"data": V}``.
 BAND_ENCODINGS = ("cdr", "json")
+#: The plant mode whose band input is a client's to give: the plant takes ``band_velocity`` in
+#: every mode, and beside a belt_drive (sim, realtime) a client's values would compete with the
+#: drive's samples; lockstep wants one answer per state, which no panel gives.
+BAND_INPUT_MODE = "rig_in_loop"
+#: The node whose mode decides (a contract node).
+PLANT = "plant"
+assert BAND_INPUT_MODE in MODES and PLANT in NODE_PARAMETERS
 
 
 @dataclass(frozen=True)
@@ -92,6 +99,16 @@ def band_channel_problem(namespace: str, topic_name: str, encoding: str, schema_
         return f"{band.name} takes {band.msgtype}, not {schema_name!r}"
     if encoding not in BAND_ENCODINGS:
         return f"{band.name}: encoding {encoding!r} is not one of {list(BAND_ENCODINGS)}"
+    return None
+
+
+def band_mode_problem(namespace: str, mode: object) -> str | None:
+    """Why band input may not go to a plant of `mode` (None: no plant answered), else None."""
+    plant = resolve_node(namespace, PLANT)
+    if mode is None:
+        return f"no plant {plant} answered: band input goes only to a {BAND_INPUT_MODE} plant"
+    if mode != BAND_INPUT_MODE:
+        return f"the plant {plant} runs mode {mode!r}: band input is taken only in {BAND_INPUT_MODE}"
     return None
 
 

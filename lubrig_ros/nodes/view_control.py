@@ -4,7 +4,8 @@
   with their ros2msg definitions); a call is forwarded to the ROS service and the ROS reply is
   returned; no server or no reply within `CALL_TIMEOUT_S` fails the call with a message.
 - `BandInput`: a client channel on ``<ns>/band_velocity`` (std_msgs/Float64, CDR or JSON) is
-  republished into ROS; other channels are refused with a status naming what is allowed.
+  republished into ROS while the plant runs rig_in_loop (its ``mode`` parameter, asked when the
+  channel is advertised); other channels are refused with a status naming what is allowed.
 - `Listener`: the server's callbacks (parameters: view_parameters.py; client channels: BandInput).
 
 The server calls the handlers on its own threads; they wait for the ROS reply while the node's
@@ -134,6 +135,9 @@ class BandInput:
         self.namespace = namespace
         self.publisher = create_publisher(node, view_access.BAND_INPUT)
         self.topic = str(self.publisher.topic_name)  # also for the summary, after the node is gone
+        from rclpy.parameter_client import AsyncParameterClient
+
+        self.plant = AsyncParameterClient(node, view_access.resolve_node(namespace, view_access.PLANT))
         self.accepted: dict[tuple[int, int], str] = {}  # (client, channel) -> encoding
         self.published = 0
         self.refused = 0
@@ -142,11 +146,23 @@ class BandInput:
         """Band input republished for clients."""
         return f"  {self.topic}: {self.published} client messages republished, {self.refused} refused"
 
+    def plant_mode(self) -> object:
+        """The plant's `mode` parameter, None if no plant answers (asked on the caller's thread)."""
+        from rclpy.parameter import parameter_value_to_python
+
+        if not self.plant.wait_for_services(timeout_sec=CALL_TIMEOUT_S):
+            return None
+        try:
+            reply = wait_for(lambda: self.plant.get_parameters(["mode"]), "plant mode", idempotent=True)
+        except TimeoutError:
+            return None
+        return parameter_value_to_python(reply.values[0]) if reply.values else None
+
     def advertise(self, client_id: int, channel: Any) -> str | None:
         """Accept a client channel, or the reason it is refused."""
         problem = view_access.band_channel_problem(
             self.namespace, channel.topic, channel.encoding, channel.schema_name
-        )
+        ) or view_access.band_mode_problem(self.namespace, self.plant_mode())
         if problem is None:
             self.accepted[(client_id, channel.id)] = channel.encoding
             self.node.get_logger().info(f"view: Foxglove client {client_id} publishes on {channel.topic}")
