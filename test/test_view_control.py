@@ -179,7 +179,9 @@ def test_band_input_is_refused_beside_a_belt_drive(procs, deadline):
     procs.node("plant", mode="realtime", max_lag=10.0)
     url = _serve(procs, deadline, "--allow-publish")
     band = {"topic": f"{NS}/band_velocity", "schemaName": "std_msgs/msg/Float64", "encoding": "cdr"}
-    lines = _client(url, deadline, procs.logs, [{"publish": {**band, "values": [2.5e-7] * 3}}, {"wait": 500}])
+    lines = _client(
+        url, deadline, procs.logs, [{"publish": {**band, "values": [2.5e-7] * 3}}, {"untilStatus": "refused"}]
+    )
     statuses = [s["message"] for s in _of(lines, "status")]
     assert any("mode 'realtime'" in m and "rig_in_loop" in m for m in statuses), statuses
     _stops_cleanly(procs)

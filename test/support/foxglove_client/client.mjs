@@ -21,6 +21,7 @@
 //                                           FIELD equals VALUE -> {"until": {..., sampleIndex}}
 //   {"subscribe": [NAME, ...]}            subscribes to parameter updates (printed as {"parameterUpdate"})
 //   {"untilParameter": {name, value}}      waits for an update of NAME to VALUE
+//   {"untilStatus": TEXT}                 waits for a status message that contains TEXT
 //   {"wait": MS} Byte arrays are summarized by their length. The server's
 // status messages and unadvertisements are printed too ({"status": ...}, {"unadvertise": [...]}).
 // A subscription the server refuses as "Unknown channel ID" while the channel is still advertised
@@ -140,6 +141,7 @@ async function runActions() {
     else if (action.publish) await publish(action.publish);
     else if (action.until) await until(action.until);
     else if (action.subscribe) client.subscribeParameterUpdates(action.subscribe);
+    else if (action.untilStatus) await new Promise((resolve) => statusUntils.push({ text: action.untilStatus, resolve }));
     else if (action.untilParameter) {
       await new Promise((resolve) => parameterUntils.push({ ...action.untilParameter, resolve }));
       print({ untilParameter: action.untilParameter });
@@ -209,8 +211,12 @@ client.on("unadvertise", (ids) => {
   print({ unadvertise: ids });
   for (const id of ids) advertised.delete(id);
 });
+const statusUntils = []; // {text, resolve}
 client.on("status", (status) => {
   print({ status: { level: status.level, message: status.message } });
+  for (let i = statusUntils.length - 1; i >= 0; i--) {
+    if ((status.message || "").includes(statusUntils[i].text)) statusUntils.splice(i, 1)[0].resolve();
+  }
   const unknown = /Unknown channel ID: (\d+)/.exec(status.message || "");
   if (!unknown) return;
   const id = Number(unknown[1]);
