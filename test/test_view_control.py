@@ -115,8 +115,7 @@ def test_client_sets_a_parameter_and_a_bad_value_is_refused_by_the_node(procs, d
     procs.node("plant", mode="realtime", max_lag=10.0)
     url = _serve(procs, deadline, "--allow-parameters")
     actions = [
-        {"wait": 2000},  # the view finds the plant on the graph
-        {"get": [PERTURBATION]},
+        {"get": [PERTURBATION], "retry": True},  # until the view has found the plant
         {"set": [{"name": PERTURBATION, "value": 0.25}]},
         {"set": [{"name": PERTURBATION, "value": 5.0}]},  # outside -1..1
         {"set": [{"name": f"{PLANT}.mode", "value": "sim"}]},  # read-only

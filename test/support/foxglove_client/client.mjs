@@ -14,7 +14,8 @@
 //   {"call": SERVICE, "request": {...}}  -> {"serviceResponse": {service, message}} (decoded with
 //                                           the advertised response schema) or {"serviceFailure"};
 //                                           "raw": HEX sends those bytes as the request instead
-//   {"get": [NAME, ...]} / {"set": [{"name", "value"}, ...]} -> {"parameters": {id, values}}
+//   {"get": [NAME, ...]} / {"set": [{"name", "value"}, ...]} -> {"parameters": {id, values}};
+//                                           "retry": true asks again until every NAME has a value
 //   {"publish": {topic, schemaName, encoding: "cdr"|"json", values: [...], periodMs}} advertises a
 //     client channel (schema "float64 data") and sends {data: value} per value
 //   {"until": {topic, field, value}}       waits for a message on TOPIC (one of the TOPICs) whose
@@ -109,10 +110,17 @@ async function callService({ call, request, raw }) {
 
 let parameterRequest = 0;
 async function parameters(action) {
-  const id = `p${++parameterRequest}`;
-  if (action.get) client.getParameters(action.get, id);
-  else client.setParameters(action.set, id);
-  const values = await reply(`parameters ${id}`);
+  let id;
+  let values;
+  for (;;) {
+    id = `p${++parameterRequest}`;
+    if (action.get) client.getParameters(action.get, id);
+    else client.setParameters(action.set, id);
+    values = await reply(`parameters ${id}`);
+    // "retry": a get sent again (0.5 s apart) until every name asked for has a value
+    if (!action.retry || action.get.every((name) => values.some((p) => p.name === name))) break;
+    await new Promise((r) => setTimeout(r, 500));
+  }
   print({ parameters: { id, values: values.map((p) => ({ name: p.name, value: p.value, type: p.type })) } });
 }
 
