@@ -143,6 +143,7 @@ def test_client_sets_a_parameter_and_a_bad_value_is_refused_by_the_node(procs, d
     assert every[f"{PLANT}.mode"] == "realtime" and every[PERTURBATION] == 0.25
     assert all(name.startswith(f"{NS}/") for name in every)
     _stops_cleanly(procs)
+    assert "parameters: 1 set, 2 refused by their node" in procs["view"].output()
 
 
 def test_parameter_changes_made_elsewhere_reach_a_subscribed_client(procs, probe, deadline):

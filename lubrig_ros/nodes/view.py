@@ -174,6 +174,7 @@ def open_access(node: Any, view: View, opened: Access) -> Opened:
     if opened.parameters:
         capabilities.append(foxglove.Capability.Parameters)
         parameters = ParameterBridge(node, view.namespace)
+        bridges.append(parameters)
         parameters.discover()
         node.create_timer(DISCOVERY_PERIOD_S, parameters.discover)
     band = None

@@ -49,12 +49,18 @@ class ParameterBridge:
         self.namespace = namespace
         self.subscribed: set[str] = set()  # client names whose changes clients want pushed
         self.server: Any = None  # set once the server runs
+        self.taken = 0
+        self.refused = 0
         from rcl_interfaces.msg import ParameterEvent
         from rclpy.qos import qos_profile_parameter_events
 
         node.create_subscription(
             ParameterEvent, "/parameter_events", self._on_event, qos_profile_parameter_events
         )
+
+    def summary(self) -> str:
+        """Parameter updates sent for clients."""
+        return f"  parameters: {self.taken} set, {self.refused} refused by their node"
 
     def subscribe(self, names: list[str], on: bool) -> None:
         """Clients want changes of `names` pushed (on) or no longer (off)."""
@@ -142,12 +148,14 @@ class ParameterBridge:
                 request = [Parameter(n, value=v) for n, v in values.items()]
                 send = functools.partial(self.clients[fqn].set_parameters, request)
                 reply = wait_for(send, f"{fqn}: set parameters", idempotent=True)
-            except (TimeoutError, TypeError, ValueError) as exc:
+            except (TimeoutError, TypeError, ValueError, KeyError) as exc:
                 status(f"parameters {names} of {fqn} not set: {exc}")
                 continue
             for (name, value), result in zip(values.items(), reply.results, strict=False):
                 if not result.successful:
+                    self.refused += 1
                     status(f"{fqn} refused {name} = {value!r}: {result.reason}")
                 else:
+                    self.taken += 1
                     self.node.get_logger().info(f"view: {fqn} took {name} = {value!r}")
         return self.get(list(wanted), lambda _m: None)  # unknown names were reported above
