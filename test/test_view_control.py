@@ -119,6 +119,7 @@ def test_client_sets_a_parameter_and_a_bad_value_is_refused_by_the_node(procs, d
         {"set": [{"name": PERTURBATION, "value": 0.25}]},
         {"set": [{"name": PERTURBATION, "value": 5.0}]},  # outside -1..1
         {"set": [{"name": f"{PLANT}.mode", "value": "sim"}]},  # read-only
+        {"set": [{"name": PERTURBATION, "value": "big"}]},  # a string for a double
         {"set": [{"name": f"{NS}/nobody.x", "value": 1}]},  # no such rig node
         {"get": [PERTURBATION]},
         {"get": []},
@@ -131,19 +132,21 @@ def test_client_sets_a_parameter_and_a_bad_value_is_refused_by_the_node(procs, d
     assert answers[1] == {PERTURBATION: 0.25}  # taken
     assert answers[2] == {PERTURBATION: 0.25}  # refused: unchanged
     assert answers[3] == {f"{PLANT}.mode": "realtime"}  # refused: unchanged
-    assert answers[4] == {}  # nothing of a node that is not the rig's
-    assert answers[5] == {PERTURBATION: 0.25}
+    assert answers[4] == {PERTURBATION: 0.25}  # refused: unchanged
+    assert answers[5] == {}  # nothing of a node that is not the rig's
+    assert answers[6] == {PERTURBATION: 0.25}
     statuses = [s["message"] for s in _of(lines, "status")]
     refusals = [m for m in statuses if "refused" in m]
-    assert len(refusals) == 2 and "initial_perturbation = 5.0" in refusals[0], refusals
+    assert len(refusals) == 3 and "initial_perturbation = 5.0" in refusals[0], refusals
     assert PLANT in refusals[0] and "range" in refusals[0].lower(), refusals  # the node's reason
     assert "mode = 'sim'" in refusals[1] and "read-only" in refusals[1].lower(), refusals
+    assert "initial_perturbation = 'big'" in refusals[2] and "type" in refusals[2].lower(), refusals
     assert any(f"{NS}/nobody.x" in m and f"{PLANT}" in m for m in statuses), statuses  # valid nodes
-    every = answers[6]
+    every = answers[7]
     assert every[f"{PLANT}.mode"] == "realtime" and every[PERTURBATION] == 0.25
     assert all(name.startswith(f"{NS}/") for name in every)
     _stops_cleanly(procs)
-    assert "parameters: 1 set, 2 refused by their node" in procs["view"].output()
+    assert "parameters: 1 set, 3 refused by their node" in procs["view"].output()
 
 
 def test_parameter_changes_made_elsewhere_reach_a_subscribed_client(procs, probe, deadline):
