@@ -17,7 +17,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "view",
         help="live view: serve the rig's topics to Foxglove (WebSocket, loopback by default)",
         description="Serve the topics of a rig namespace (live rig or `lubrig replay`) over the Foxglove "
-        "WebSocket protocol, decimated for display. Runs until Ctrl-C.",
+        "WebSocket protocol, decimated for display. Read-only unless an --allow-... option lets "
+        "clients act on the rig (the protocol has no authentication: every client that reaches "
+        "the port can). Runs until Ctrl-C.",
     )
     view.add_arguments(p)
     p.set_defaults(func=view.run)
