@@ -104,7 +104,7 @@ def test_csv_with_unit_suffixed_columns(tmp_path: Path) -> None:
     [
         ("time,displacement\n0,1\n", "no band_velocity column"),
         ("time,band_velocity\n" + "".join(f"{k / 1000},1e-7\n" for k in range(30)), "no measured stream"),
-        ("time,band_velocity,displacement\n0,1e-7,x\n", "not 3 numbers"),
+        ("time,band_velocity,displacement\n0,1e-7,x\n", "row 2: displacement 'x' is not a number"),
         (
             "time,band_velocity,displacement\n" + "".join(f"{k * k / 1000},1e-7,0\n" for k in range(30)),
             "time step",

@@ -139,12 +139,7 @@ def load_csv(path: Path) -> MeasuredData:
                 f"{source} has no {name} column (header {header}); expected columns {', '.join(COLUMNS)} "
                 "(SI units; time_s, band_velocity_m_s, displacement_m also accepted)"
             )
-    try:
-        table = np.array([[float(row[i]) for i in where.values()] for row in rows[1:] if row], dtype=float)
-    except (ValueError, IndexError):
-        raise InputError(
-            f"{source} holds a row that is not {len(header)} numbers; expected numbers in SI units"
-        ) from None
+    table = np.array([_numbers(row, where, number, source) for number, row in enumerate(rows[1:], 2) if row])
     if table.size == 0:
         raise InputError(f"{source} has no data rows")
     column = {name: table[:, k] for k, name in enumerate(where)}
@@ -155,6 +150,20 @@ def load_csv(path: Path) -> MeasuredData:
         column.get("friction_coefficient"),
         source,
     )
+
+
+def _numbers(row: list[str], where: dict[str, int], number: int, source: str) -> list[float]:
+    """The row's values of the columns in `where`; InputError naming the row and the bad value."""
+    values = []
+    for name, index in where.items():
+        text = row[index] if index < len(row) else ""
+        try:
+            values.append(float(text))
+        except ValueError:
+            raise InputError(
+                f"{source} row {number}: {name} {text!r} is not a number; expected numbers in SI units"
+            ) from None
+    return values
 
 
 def _kept(topic: str) -> bool:
