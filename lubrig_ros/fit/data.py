@@ -8,7 +8,7 @@ Two sources, both SI units:
   accepted too, so a run directory's timeseries.csv fits as it is;
 * a bag recorded by `lubrig rig` (or any bag with the rig's ``<ns>/state_block`` stream): the
   displacement and friction coefficient from the recorded state stream, the band velocity from the
-  recorded band stream ``<ns>/band_velocity_block`` (matched by sample index; the initial sample,
+  recorded band stream ``<ns>/band_velocity_block`` (matched by rig time; the initial sample,
   which belt_drive does not send, from the state stream's own band value), read with the one bag
   reader (bag.reader.Bag).
 
@@ -28,7 +28,7 @@ import numpy as np
 from lubrig_ros.core.errors import InputError
 
 from ..bag.errors import BagError
-from ..bag.reader import Bag
+from ..bag.reader import Bag, TopicArrays
 from ..core.schema import SAMPLE_UNITS, unit_column
 
 #: The streams a record may hold, in CSV column order.
@@ -196,17 +196,7 @@ def load_bag(path: Path) -> MeasuredData:
     pick = lambda name: np.asarray(state[name], float)[first][order][unique]  # noqa: E731
     band = pick("band_velocity")
     if band_topic in arrays:
-        recorded = arrays[band_topic]
-        band_index = np.asarray(recorded["sample_index"], np.int64)
-        same_segment = np.asarray(recorded["segment"], np.int64) == segment.min()
-        lookup = dict(
-            zip(
-                band_index[same_segment].tolist(),
-                np.asarray(recorded["band_velocity"], float)[same_segment].tolist(),
-                strict=True,
-            )
-        )
-        band = np.array([lookup.get(int(k), float(b)) for k, b in zip(index, band, strict=True)])
+        band = _recorded_band(arrays[band_topic], int(segment.min()), pick("stamp"), band)
     gaps = np.flatnonzero(np.diff(index) != 1)
     if gaps.size:
         raise InputError(
@@ -220,6 +210,22 @@ def load_bag(path: Path) -> MeasuredData:
         )
     time = (index - index[0]) * (round(period * 1e9) / 1e9)  # stamps are on the nanosecond grid
     return checked(time, band, pick("displacement"), pick("friction_coefficient"), source)
+
+
+def _recorded_band(
+    recorded: TopicArrays, segment: int, stamps: np.ndarray, fallback: np.ndarray
+) -> np.ndarray:
+    """The band stream's value at every state sample, matched by rig time (stamp, to the ns).
+
+    A band block's sample index counts band samples (its first is the band at t = 1 dt), so the
+    rig time is the common key. A state sample without a band sample (t = 0: belt_drive sends the
+    band after the initial state) keeps the state stream's own band value.
+    """
+    same = np.asarray(recorded["segment"], np.int64) == segment
+    keys = np.round(np.asarray(recorded["stamp"], float)[same] * 1e9).astype(np.int64).tolist()
+    lookup = dict(zip(keys, np.asarray(recorded["band_velocity"], float)[same].tolist(), strict=True))
+    wanted = np.round(stamps * 1e9).astype(np.int64).tolist()
+    return np.array([lookup.get(k, float(b)) for k, b in zip(wanted, fallback, strict=True)])
 
 
 def load_data(path: str | Path) -> MeasuredData:
