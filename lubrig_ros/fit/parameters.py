@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
+from typing import Any
 
 import numpy as np
 
@@ -115,7 +116,7 @@ def free_parameters(names: list[str], config: RunConfig) -> list[FreeParameter]:
 
 def with_values(config: RunConfig, parameters: list[FreeParameter], values: np.ndarray) -> RunConfig:
     """`config` with each free parameter set to its value (physical units)."""
-    rig_changes: dict[str, float] = {}
+    rig_changes: dict[str, Any] = {}
     friction_changes: dict[str, float] = {}
     for parameter, value in zip(parameters, values, strict=True):
         target = friction_changes if parameter.section == FRICTION_SECTION else rig_changes
