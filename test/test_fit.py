@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from lubrig_testkit.reference_rig import ReferenceRig, reference_state
+from lubrig_testkit.measured import noisy_record
 
 from lubrig_ros.core.errors import InputError
 from lubrig_ros.core.presets import RunConfig, load_case
@@ -29,17 +29,7 @@ DURATION = 3.0  # s of 1 kHz data per record
 
 def synthetic(config: RunConfig, truth: dict[str, float], seed: int = 1) -> MeasuredData:
     """A noisy record of the reference rig with `truth` driven by `config`'s band."""
-    rig = ReferenceRig(**truth)
-    time = np.arange(round(config.duration * 1000) + 1) / 1000.0
-    band = np.asarray(config.band(time), float)
-    gamma = 1.0 if config.rig.convention == "physical" else 1.0 / rig.omega0
-    x0 = (1.0 + config.initial_perturbation) * rig.mu(band[0]) * rig.normal_force / rig.stiffness
-    x, v = reference_state(time, band, x0, gamma, rig)
-    mu = np.array([rig.mu(b - gamma * w) for b, w in zip(band, v, strict=True)])
-    rng = np.random.default_rng(seed)
-    noisy_x = x + rng.normal(0.0, 0.01 * np.ptp(x), x.size)
-    noisy_mu = mu + rng.normal(0.0, 0.01 * np.ptp(mu), mu.size)
-    return checked(time, band, noisy_x, noisy_mu, "synthetic")
+    return checked(*noisy_record(config, truth, seed), "synthetic")
 
 
 def assert_recovered(result: object, truth: dict[str, float]) -> None:

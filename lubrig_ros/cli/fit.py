@@ -9,6 +9,7 @@ within their physical ranges (core/schema.py); method and outputs: docs/fitting.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -109,8 +110,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--workers",
         metavar="N",
-        default="1",
-        help=f"processes for the Jacobian's runs, 1..{MAX_LOCAL_WORKERS} (default 1)",
+        default=str(os.cpu_count() or 1),
+        help=f"processes for the Jacobian's runs, 1..{MAX_LOCAL_WORKERS} (default: one per core, "
+        f"{os.cpu_count() or 1} here)",
     )
     parser.add_argument(
         "--max-evaluations",

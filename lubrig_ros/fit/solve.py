@@ -38,6 +38,9 @@ MAX_CORRELATION = 0.99
 MAX_RELATIVE_ERROR = 1.0
 #: Eigenvalue of the correlation-scaled information below which a direction counts as unseen.
 MIN_EIGENVALUE = 1e-8
+#: The first stage (states alone) only prepares the second: a coarse tolerance, few evaluations.
+STATE_STAGE_FTOL = 1e-4
+STATE_STAGE_EVALUATIONS = 10
 #: Default length of a shooting segment, s.
 SEGMENT_SECONDS = 0.25
 
@@ -241,7 +244,13 @@ def _fit_states(runner: Runner, z0: np.ndarray, count: int, max_evaluations: int
         return runner.jacobian(np.concatenate([theta, states]), parameters=False)[:, count:]
 
     solution = least_squares(
-        fun, z0[count:], jac=jac, method="trf", tr_solver="exact", max_nfev=max_evaluations
+        fun,
+        z0[count:],
+        jac=jac,
+        method="trf",
+        tr_solver="exact",
+        ftol=STATE_STAGE_FTOL,
+        max_nfev=min(max_evaluations, STATE_STAGE_EVALUATIONS),
     )
     return np.concatenate([theta, solution.x])
 
