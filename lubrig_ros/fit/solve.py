@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.sparse import csr_matrix
 
 from ..core.presets import RunConfig
 from .data import MeasuredData
@@ -127,25 +128,26 @@ def _json_float(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def covariance(problem: ShootingProblem, jac: np.ndarray, residual: np.ndarray) -> tuple[np.ndarray, float]:
-    """(covariance of z, s²): s² (JᵀJ)⁺ with the continuity rows at COVARIANCE_WEIGHT."""
+def information_matrix(problem: ShootingProblem, jac: np.ndarray) -> np.ndarray:
+    """JᵀJ with the continuity rows weighted COVARIANCE_WEIGHT instead of the fit's weight."""
     rows = problem.data_rows()
-    weighted = jac.copy()
-    weighted[rows:] *= COVARIANCE_WEIGHT / problem.defect_weight
-    dof = max(rows - jac.shape[1], 1)
+    data, defects = jac[:rows], jac[rows:]
+    factor = (COVARIANCE_WEIGHT / problem.defect_weight) ** 2
+    return np.asarray(data.T @ data + factor * (defects.T @ defects))
+
+
+def covariance(problem: ShootingProblem, information: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """Covariance of z: s² (JᵀJ)⁺, s² the data residuals' mean square per degree of freedom."""
+    rows = problem.data_rows()
+    dof = max(rows - information.shape[0], 1)
     s2 = float(residual[:rows] @ residual[:rows]) / dof
-    information = weighted.T @ weighted
-    return s2 * np.linalg.pinv(information, rcond=1e-15, hermitian=True), s2
+    return np.asarray(s2 * np.linalg.pinv(information, rcond=1e-15, hermitian=True))
 
 
-def parameter_information(problem: ShootingProblem, jac: np.ndarray) -> np.ndarray:
+def parameter_information(problem: ShootingProblem, information: np.ndarray) -> np.ndarray:
     """Information of the parameters with the states eliminated (Schur complement), in θ."""
-    rows = problem.data_rows()
-    weighted = jac.copy()
-    weighted[rows:] *= COVARIANCE_WEIGHT / problem.defect_weight
     count = len(problem.parameters)
-    full = weighted.T @ weighted
-    pp, ps, ss = full[:count, :count], full[:count, count:], full[count:, count:]
+    pp, ps, ss = information[:count, :count], information[:count, count:], information[count:, count:]
     return np.asarray(pp - ps @ np.linalg.pinv(ss, rcond=1e-15, hermitian=True) @ ps.T)
 
 
@@ -214,10 +216,10 @@ def fit(
         solution = least_squares(
             runner.residuals,
             z0,
-            jac=runner.jacobian,
+            jac=lambda z: csr_matrix(runner.jacobian(z)),
             bounds=(low, high),
             method="trf",
-            tr_solver="exact",
+            tr_solver="lsmr",
             x_scale=1.0,
             max_nfev=max_evaluations,
         )
@@ -240,15 +242,15 @@ def _fit_states(runner: Runner, z0: np.ndarray, count: int, max_evaluations: int
     def fun(states: np.ndarray) -> np.ndarray:
         return runner.residuals(np.concatenate([theta, states]))
 
-    def jac(states: np.ndarray) -> np.ndarray:
-        return runner.jacobian(np.concatenate([theta, states]), parameters=False)[:, count:]
+    def jac(states: np.ndarray) -> csr_matrix:
+        return csr_matrix(runner.jacobian(np.concatenate([theta, states]), parameters=False)[:, count:])
 
     solution = least_squares(
         fun,
         z0[count:],
         jac=jac,
         method="trf",
-        tr_solver="exact",
+        tr_solver="lsmr",
         ftol=STATE_STAGE_FTOL,
         max_nfev=min(max_evaluations, STATE_STAGE_EVALUATIONS),
     )
@@ -265,9 +267,10 @@ def _result(
     wall: float,
 ) -> FitResult:
     values, states = problem.unpack(solution.x)
-    cov, _s2 = covariance(problem, jac, solution.fun)
+    information = information_matrix(problem, jac)
+    cov = covariance(problem, information, solution.fun)
     count = len(parameters)
-    info = parameter_information(problem, jac)
+    info = parameter_information(problem, information)
     theta_errors = np.sqrt(np.clip(np.diag(cov)[:count], 0.0, None))
     errors = np.array(
         [p.physical_error(v, e) for p, v, e in zip(parameters, values, theta_errors, strict=True)]
