@@ -50,6 +50,20 @@ def test_study_cases_recover_rig_and_friction_parameters(case: int) -> None:
     assert_recovered(result, TRUTH)
     for name, rms in result.residual_rms.items():  # the model leaves the noise, no more
         assert rms < 1.1 * result.noise[name], (name, rms, result.noise[name])
+    assert result.misfit() == {}
+
+
+def test_a_fit_that_does_not_explain_the_data_says_so() -> None:
+    """Stick-slip data (case 1, physical γ = 1) fitted with the paper convention's γ = 1/ω0 held.
+
+    No damping ratio in [0, 2] gives that rig stick-slip: the residuals stay far above the noise,
+    and the result says so instead of passing the estimate off as a fit.
+    """
+    measured = load_case(1).with_overrides(convention="physical", duration=2.0)
+    data = synthetic(measured, {})
+    result = fit(data, load_case(1).with_overrides(duration=2.0), ["damping_ratio"])
+    assert set(result.misfit()) == {"displacement", "friction_coefficient"}, result.residual_rms
+    assert result.to_dict()["misfit"]["displacement"] > 1.5
 
 
 def test_a_set_the_data_cannot_separate_is_named() -> None:

@@ -79,6 +79,12 @@ def run(args: argparse.Namespace) -> int:
         f"{data.time.size} samples, {result.evaluations} evaluations in {result.wall_time:.1f} s "
         f"({result.status}); results in {out}/"
     )
+    for name, ratio in result.misfit().items():
+        print(
+            f"lubrig fit: warning: the fit leaves {ratio:.1f} × the noise in {name}: the fitted model "
+            "does not explain the data (a local minimum, or other parameters to free); see fit.md",
+            file=sys.stderr,
+        )
     if result.undetermined:
         for name, why in result.undetermined.items():
             print(f"lubrig fit: warning: {name} is not determined by the data: {why}", file=sys.stderr)

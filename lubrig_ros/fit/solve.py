@@ -39,6 +39,9 @@ MAX_CORRELATION = 0.99
 MAX_RELATIVE_ERROR = 1.0
 #: Eigenvalue of the correlation-scaled information below which a direction counts as unseen.
 MIN_EIGENVALUE = 1e-8
+#: Residual RMS above this multiple of a stream's noise estimate: the fitted model does not
+#: explain the data (a local minimum, a model that cannot, or parameters that should be free).
+MAX_MISFIT = 1.5
 #: The first stage (states alone) only prepares the second: a coarse tolerance, few evaluations.
 STATE_STAGE_FTOL = 1e-4
 STATE_STAGE_EVALUATIONS = 10
@@ -74,6 +77,11 @@ class FitResult:
     #: the fitted model at every sample (the shooting segments), by measured stream
     model: dict[str, np.ndarray] = field(default_factory=dict)
 
+    def misfit(self) -> dict[str, float]:
+        """Streams whose residual RMS exceeds MAX_MISFIT noise estimates: stream → RMS / noise."""
+        ratios = {name: rms / self.noise[name] for name, rms in self.residual_rms.items()}
+        return {name: ratio for name, ratio in ratios.items() if ratio > MAX_MISFIT}
+
     @property
     def names(self) -> list[str]:
         """The free parameters' names."""
@@ -106,6 +114,7 @@ class FitResult:
                 "velocity_standard_error_m_s": _json_float(self.initial_state_errors[1]),
             },
             "residual_rms": self.residual_rms,
+            "misfit": self.misfit(),
             "noise_estimate": self.noise,
             "cost": self.cost,
             "function_evaluations": self.evaluations,
