@@ -195,7 +195,9 @@ def undetermined(
                 )
     for j, p in enumerate(parameters):
         if diagonal[j] == 0.0:
-            found.setdefault(p.name, []).append("the residuals do not change with it")
+            found.setdefault(p.name, []).append(
+                "no information left once the segments' start states are fitted (they absorb it)"
+            )
     return {name: "; ".join(dict.fromkeys(reasons)) for name, reasons in found.items()}
 
 
