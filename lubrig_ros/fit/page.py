@@ -200,6 +200,10 @@ def _markdown(document: dict[str, Any], figures: list[str]) -> str:
     lines.append("")
     for name, why in document["undetermined"].items():
         lines.append(f"- **{name}** is not determined by the data: {why}.")
+    for name, ratio in document["misfit"].items():
+        lines.append(
+            f"- **misfit**: {ratio:.1f} × the noise left in {name}; the model does not explain the data."
+        )
     rms = ", ".join(f"{k} {v:.3g}" for k, v in document["residual_rms"].items())
     lines += [
         "",
