@@ -1,6 +1,6 @@
 """The import graph of lubrig_ros follows the tiers of docs/architecture.md, read with ast.
 
-Tiers: core 0, app 1, bag + figures 2, nodes + report + sweep 3, cli 4 (modules directly in
+Tiers: core 0, app 1, bag + figures 2, nodes + report + sweep + fit 3, cli 4 (modules directly in
 lubrig_ros/, e.g. its __init__ with __version__, count as tier 0). A module may import its own
 subpackage and lower tiers, never a higher tier and never a same-tier sibling package; no
 import cycle between modules; core and app import no ROS package. Every import counts, also
@@ -19,7 +19,7 @@ import pytest
 
 PACKAGE = "lubrig_ros"
 ROOT = Path(__file__).resolve().parents[1] / PACKAGE
-TIERS = {"core": 0, "app": 1, "bag": 2, "figures": 2, "nodes": 3, "report": 3, "sweep": 3, "cli": 4}
+TIERS = {"core": 0, "app": 1, "bag": 2, "figures": 2, "nodes": 3, "report": 3, "sweep": 3, "fit": 3, "cli": 4}
 ROS_FREE = ("core", "app")
 #: Top-level modules of ROS 2 (not rosbags, mcap: those are plain Python libraries).
 ROS_MODULE = re.compile(

@@ -46,6 +46,8 @@ def _files(root: Path) -> dict[str, Path]:
     write("notyaml.yaml", "rig: [unclosed\n")
     write("fast.csv", "time_s,band_velocity_m_s\n0,0\n1,1.0\n")
     write("text.csv", "time_s,band_velocity_m_s\n0,0\n1,abc\n")
+    rows = "".join(f"{k / 1000},1e-7,{1e-8 if k != 7 else 'inf'}\n" for k in range(40))
+    write("infinite.csv", "time,band_velocity,displacement\n" + rows)
     write(
         "grid.yaml",
         """\
@@ -298,6 +300,19 @@ def _invocations(f: dict[str, Path], out: Path) -> list[tuple[list[str], str]]:
         (["sweep", str(f["badpoint.yaml"]), "--out", str(out / "s"), "--scheduler", "bogus"], "bogus"),
         (["frobnicate"], "frobnicate"),
     ]
+    fit = ["fit", str(f["infinite.csv"]), *o]
+    cases += [
+        ([*fit, "--free", "bogus"], "bogus"),
+        ([*fit, "--free", "damping_ratio", "damping_ratio"], "damping_ratio"),
+        ([*fit, "--free", "damping_ratio", "--segment", "nan"], "nan"),
+        ([*fit, "--free", "damping_ratio", "--segment", "-1"], "-1"),
+        ([*fit, "--free", "damping_ratio", "--workers", "0"], "--workers"),
+        ([*fit, "--free", "damping_ratio", "--max-evaluations", "0"], "max-evaluations"),
+        ([*fit, "--free", "damping_ratio", "--case", "11"], "11"),
+        ([*fit, "--free", "damping_ratio"], "inf"),
+        (["fit", str(f["missing"]), *o, "--free", "damping_ratio"], "missing"),
+        (["fit", str(f["text.csv"]), *o, "--free", "damping_ratio"], "abc"),
+    ]
     return cases
 
 
@@ -344,6 +359,7 @@ def test_every_bad_invocation_ends_in_one_line_naming_the_value(tmp_path: Path, 
         "report",
         "paper",
         "sweep",
+        "fit",
     }
     env = {**os.environ, "ROS_DOMAIN_ID": str(ros_domain)}
     with ThreadPoolExecutor(PARALLEL) as pool:

@@ -23,6 +23,7 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
     "report",
     "paper",
     "sweep",
+    "fit",
 )
 
 

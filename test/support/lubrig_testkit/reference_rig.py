@@ -99,7 +99,19 @@ def reference_displacement(
     rig: ReferenceRig | None = None,
     rtol: float = 1e-12,
 ) -> np.ndarray:
-    """x at every sample time of a run starting at (x0, ẋ = 0), band linear between samples.
+    """x at every sample time of a run starting at (x0, ẋ = 0) (reference_state's x)."""
+    return reference_state(time, band, x0, gamma, rig, rtol)[0]
+
+
+def reference_state(
+    time: np.ndarray,
+    band: np.ndarray,
+    x0: float,
+    gamma: float,
+    rig: ReferenceRig | None = None,
+    rtol: float = 1e-12,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(x, ẋ) at every sample time of a run starting at (x0, ẋ = 0), band linear between samples.
 
     LSODA at `rtol` with an absolute tolerance 1e-3 × rtol of the rig's length and velocity scales
     (1e-2 N/k and ω0 times it): at rtol 1e-12, 20 s of physical-convention stick-slip agree with
@@ -135,4 +147,4 @@ def reference_displacement(
     )
     if not solution.success:
         raise RuntimeError(f"reference integration failed: {solution.message}")
-    return np.asarray(solution.y[0])
+    return np.asarray(solution.y[0]), np.asarray(solution.y[1])

@@ -1,0 +1,339 @@
+"""Multiple shooting on the compiled core: residuals and Jacobian of a fit.
+
+Why multiple shooting: a stick-slip trajectory depends on its parameters through slip times, and
+over many slips a small parameter error shifts a slip by a large share of the displacement range;
+fitting one long simulation (single shooting) then meets a cost full of local minima. Here the
+record is cut into segments (default 0.25 s); each starts from its own free state (x_i, ẋ_i) and is
+integrated over the measured band by core.integrator.RigIntegrator (the project's Radau IIA, the
+code path of `lubrig simulate` and the plant), so no segment is long enough to lose its slips. The
+continuity of x and ẋ at every boundary is a residual with a weight (DEFECT_WEIGHT noise units):
+at the solution the segments join into one trajectory of the fitted rig.
+
+Residuals, all in units of each stream's noise (estimated from the record, `noise_level`):
+(x_model − x_measured) / σ_x and (μ_model − μ_measured) / σ_μ at every sample of the streams
+present, then the weighted defects at the segment boundaries. The model at a boundary sample is
+the end of the segment that reaches it, not the next one's free start state: while the mass
+sticks, μ depends on v_rel ≈ 0 with a slope up to 1e11 s/m, so a start velocity off by 1e-13 m/s
+would put μ off by 0.01 at that one sample (the integration settles it within microseconds).
+
+The Jacobian is by forward differences with the structure used: one run of the whole record per
+free parameter, plus one with every segment's x_i moved and one with every ẋ_i moved (segment i's
+samples depend on its own start state only), so a Jacobian costs P + 2 runs of the record
+whatever the number of segments. The runs are independent: with workers > 1 they go to a pool
+of forked processes (the compiled core does not release the GIL, so threads would not help).
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from ..core.friction_laws import law_for
+from ..core.integrator import IntegrationError, RigIntegrator
+from ..core.presets import RunConfig
+from .data import MeasuredData
+from .parameters import FreeParameter, with_values
+
+#: Weight of a continuity defect against one sample's residual (both in noise units).
+DEFECT_WEIGHT = 10.0
+#: Forward-difference step in θ and in the scaled states.
+STEP = 1e-6
+#: Residual given to a sample whose run failed (the step size collapsed): a bad step, not a crash.
+FAILED = 1e3
+
+#: The problem a forked worker computes for (set before the pool forks).
+_WORKER_PROBLEM: ShootingProblem | None = None
+
+
+def noise_level(values: np.ndarray) -> float:
+    """White-noise σ of a stream from its second differences (robust: median absolute deviation).
+
+    A smooth signal sampled at 1 kHz barely curves from one sample to the next, so the second
+    difference y[k+1] − 2 y[k] + y[k−1] is noise alone, of variance 6 σ². Floored at 1e-9 of the
+    stream's range (noise-free data would otherwise weigh infinitely).
+    """
+    second = values[2:] - 2.0 * values[1:-1] + values[:-2]
+    mad = float(np.median(np.abs(second - np.median(second))))
+    span = float(np.ptp(values)) or abs(float(values[0])) or 1.0
+    return max(1.4826 * mad / math.sqrt(6.0), 1e-9 * span)
+
+
+@dataclass
+class Run:
+    """One run of the record: model streams at every sample, end states of all but the last segment."""
+
+    displacement: np.ndarray
+    friction_coefficient: np.ndarray
+    ends: np.ndarray  # (segments − 1, 2): x, ẋ at the next segment's start sample
+    failed: bool = False
+
+
+@dataclass
+class ShootingProblem:
+    """The record, the start configuration, the free parameters and the segment grid."""
+
+    data: MeasuredData
+    config: RunConfig
+    parameters: list[FreeParameter]
+    segment_samples: int
+    defect_weight: float = DEFECT_WEIGHT
+    starts: np.ndarray = field(init=False)
+    sigma: dict[str, float] = field(init=False)
+    state_scale: tuple[float, float] = field(init=False)
+    state_steps: tuple[float, float] = field(init=False)  # forward-difference steps of x_i, ẋ_i
+
+    def __post_init__(self) -> None:
+        n = self.data.time.size
+        count = max(1, (n - 1) // self.segment_samples)
+        self.starts = np.array([k * self.segment_samples for k in range(count)], dtype=np.int64)
+        self.sigma = {name: noise_level(values) for name, values in self.data.streams.items()}
+        length = self._length_scale()
+        self.state_scale = (length, length * self.config.rig.angular_frequency)
+        self.state_steps = (STEP, min(STEP, self._stick_step() / self.state_scale[1]))
+
+    def _stick_step(self) -> float:
+        """A velocity step (m/s) that keeps a stuck mass stuck: 1e-3 of the friction peak's v_rel / γ.
+
+        While the mass sticks, |v_rel| stays below the velocity of the friction peak (4.08e-12 m/s
+        for the study's law); a forward-difference step of ẋ_i beyond it would make the moved run
+        slip and the Jacobian column meaningless. A law without a peak puts no bound.
+        """
+        rig = self.config.rig
+        peak = law_for(rig.friction).peak(rig.friction)
+        return math.inf if peak is None else 1e-3 * peak.velocity / rig.velocity_factor
+
+    def _length_scale(self) -> float:
+        """Displacement scale: the measured range, else N μ_range / k of the start rig."""
+        if self.data.displacement is not None:
+            return float(np.ptp(self.data.displacement)) or abs(float(self.data.displacement[0])) or 1e-9
+        mu = self.data.friction_coefficient
+        assert mu is not None
+        rig = self.config.rig
+        return float(np.ptp(mu) or abs(mu[0]) or 1e-3) * rig.normal_force / rig.stiffness
+
+    @property
+    def segments(self) -> int:
+        """Number of shooting segments."""
+        return int(self.starts.size)
+
+    @property
+    def ends(self) -> np.ndarray:
+        """Last sample of every segment (the next one's start; the record's last for the last)."""
+        return np.append(self.starts[1:], self.data.time.size - 1)
+
+    # -- vector z = [θ (free parameters), x_0/Lx, ẋ_0/Lv, x_1/Lx, ...] --------------------------
+    def pack(self, values: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """The optimizer's vector of physical values and segment start states."""
+        theta = [p.to_theta(v) for p, v in zip(self.parameters, values, strict=True)]
+        return np.concatenate([theta, (states / np.array(self.state_scale)).ravel()])
+
+    def unpack(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(physical values, states (segments, 2)) of an optimizer vector."""
+        count = len(self.parameters)
+        values = np.array([p.from_theta(t) for p, t in zip(self.parameters, z[:count], strict=True)])
+        states = z[count:].reshape(-1, 2) * np.array(self.state_scale)
+        return values, states
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of z: the physical ranges of the parameters, states free."""
+        low = [p.theta_bounds()[0] for p in self.parameters] + [-np.inf] * (2 * self.segments)
+        high = [p.theta_bounds()[1] for p in self.parameters] + [np.inf] * (2 * self.segments)
+        return np.array(low), np.array(high)
+
+    def initial_states(self, values: np.ndarray) -> np.ndarray:
+        """Segment start states from the data (smoothed x and its derivative), else from a run."""
+        x = self.data.displacement
+        if x is None:
+            run = self.continuous_run(values, None)
+            return np.column_stack([run.displacement[self.starts], run.velocity[self.starts]])
+        window = min(2 * (int(0.02 * self.data.sample_rate) // 2) + 1, 2 * ((x.size - 1) // 2) - 1)
+        window = max(window, 5)
+        smooth = savgol_filter(x, window, 3)
+        slope = savgol_filter(x, window, 3, deriv=1, delta=1.0 / self.data.sample_rate)
+        return np.column_stack([smooth[self.starts], slope[self.starts]])
+
+    # -- runs ------------------------------------------------------------------------------------
+    def config_for(self, values: np.ndarray) -> RunConfig:
+        """The start configuration with the free parameters set."""
+        return with_values(self.config, self.parameters, values)
+
+    def integrator(self, values: np.ndarray) -> RigIntegrator:
+        """A fresh integrator of the rig with these parameter values at the record's sample rate."""
+        config = self.config_for(values)
+        return RigIntegrator(
+            config.rig,
+            float(self.data.band_velocity[0]),
+            sample_rate=self.data.sample_rate,
+            rtol=config.rtol,
+        )
+
+    def run(self, values: np.ndarray, states: np.ndarray) -> Run:
+        """Every segment from its own start state: the model at every sample and the end states."""
+        n = self.data.time.size
+        x = np.empty(n)
+        mu = np.empty(n)
+        ends = np.empty((self.segments - 1, 2))
+        try:
+            integrator = self.integrator(values)
+            band, time = self.data.band_velocity, self.data.time
+            for i, (start, end) in enumerate(zip(self.starts, self.ends, strict=True)):
+                integrator.initial_displacement, integrator.initial_velocity = states[i]
+                integrator.reset(band_velocity=float(band[start]), time=float(time[start]))
+                if i == 0:
+                    first = integrator.current()
+                    x[0], mu[0] = first.displacement[0], first.friction_coefficient[0]
+                part = integrator.advance(band[start + 1 : end + 1])
+                x[start + 1 : end + 1] = part.displacement
+                mu[start + 1 : end + 1] = part.friction_coefficient
+                if i < self.segments - 1:
+                    ends[i] = part.displacement[-1], part.velocity[-1]
+        except (IntegrationError, ValueError):
+            return Run(np.full(n, np.nan), np.full(n, np.nan), np.full(ends.shape, np.nan), failed=True)
+        return Run(x, mu, ends)
+
+    def continuous_run(self, values: np.ndarray, state: np.ndarray | None) -> Any:
+        """One run over the whole record from `state` (x, ẋ) or the configuration's initial condition."""
+        integrator = self.integrator(values)
+        if state is not None:
+            integrator.initial_displacement, integrator.initial_velocity = float(state[0]), float(state[1])
+            integrator.reset()
+        first = integrator.current()
+        from ..core.trajectory import concatenate
+
+        return concatenate([first, integrator.advance(self.data.band_velocity[1:])])
+
+    # -- residuals and Jacobian ------------------------------------------------------------------
+    def residuals_of(self, run: Run, states: np.ndarray) -> np.ndarray:
+        """The residual vector of a run (noise units; defects weighted)."""
+        parts = []
+        for name, measured in self.data.streams.items():
+            model = run.displacement if name == "displacement" else run.friction_coefficient
+            parts.append((model - measured) / self.sigma[name])
+        lx, lv = self._defect_scales()
+        defects = (run.ends - states[1:]) / np.array([lx, lv])
+        parts.append(self.defect_weight * defects.ravel())
+        residual = np.concatenate(parts)
+        return np.where(np.isfinite(residual), residual, FAILED)
+
+    def _defect_scales(self) -> tuple[float, float]:
+        """σ of x in the defects (σ_x, else that of μ as a displacement) and of ẋ (ω0 σ_x)."""
+        if "displacement" in self.sigma:
+            lx = self.sigma["displacement"]
+        else:
+            rig = self.config.rig
+            lx = self.sigma["friction_coefficient"] * rig.normal_force / rig.stiffness
+        return lx, lx * self.config.rig.angular_frequency
+
+    def data_rows(self) -> int:
+        """Residual rows that compare the model with measured samples."""
+        return self.data.time.size * len(self.data.streams)
+
+    def jacobian_tasks(
+        self, z: np.ndarray, parameters: bool = True
+    ) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """(values, states, step) of every perturbed run a Jacobian needs: P parameters, all x_i, all ẋ_i.
+
+        Without `parameters` only the two state runs (a fit of the states alone).
+        """
+        values, states = self.unpack(z)
+        count = len(self.parameters)
+        _, high = self.bounds()
+        tasks = []
+        for j in range(count if parameters else 0):
+            step = STEP if z[j] + STEP <= high[j] else -STEP
+            moved = z.copy()
+            moved[j] += step
+            tasks.append((self.unpack(moved)[0], states, step))
+        for column in range(2):
+            step = self.state_steps[column]
+            moved_states = states.copy()
+            moved_states[:, column] += step * self.state_scale[column]
+            tasks.append((values, moved_states, step))
+        return tasks
+
+    def jacobian_from(self, z: np.ndarray, base: np.ndarray, runs: list[Run]) -> np.ndarray:
+        """The dense Jacobian from the base residuals and the perturbed runs of jacobian_tasks.
+
+        With runs for the states only, the parameters' columns are left zero.
+        """
+        parameters = len(runs) > 2
+        count = len(self.parameters)
+        tasks = self.jacobian_tasks(z, parameters)
+        jac = np.zeros((base.size, z.size))
+        for j in range(count if parameters else 0):
+            _, task_states, step = tasks[j]
+            jac[:, j] = (self.residuals_of(runs[j], task_states) - base) / step
+        starts, ends = self.starts, self.ends
+        lx, lv = self._defect_scales()
+        data_rows = self.data_rows()
+        n = self.data.time.size
+        for column in range(2):
+            offset = count if parameters else 0
+            _, task_states, step = tasks[offset + column]
+            delta = (self.residuals_of(runs[offset + column], task_states) - base) / step
+            for i in range(self.segments):
+                col = count + 2 * i + column
+                first = 0 if i == 0 else starts[i] + 1  # a boundary sample is its earlier segment's end
+                for k in range(len(self.data.streams)):
+                    rows = slice(k * n + first, k * n + ends[i] + 1)
+                    jac[rows, col] = delta[rows]
+                if i < self.segments - 1:
+                    row = data_rows + 2 * i
+                    own = delta[row : row + 2]  # d(end_i)/d(state_i) minus the known −1 of state_{i+1}
+                    own[column] += self.defect_weight * self.state_scale[column] / (lx, lv)[column]
+                    jac[row : row + 2, col] = own
+                if i > 0:
+                    row = data_rows + 2 * (i - 1) + column
+                    jac[row, col] = -self.defect_weight * self.state_scale[column] / (lx, lv)[column]
+        return jac
+
+
+def _worker_run(task: tuple[np.ndarray, np.ndarray, float]) -> Run:
+    assert _WORKER_PROBLEM is not None
+    return _WORKER_PROBLEM.run(task[0], task[1])
+
+
+class Runner:
+    """Runs of a problem, serially or in a pool of forked worker processes (closed by `close`)."""
+
+    def __init__(self, problem: ShootingProblem, workers: int) -> None:
+        global _WORKER_PROBLEM
+        self.problem = problem
+        self.pool: Any = None
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
+        if workers > 1:
+            _WORKER_PROBLEM = problem  # the forked workers inherit it
+            self.pool = multiprocessing.get_context("fork").Pool(workers)
+
+    def map(self, tasks: list[tuple[np.ndarray, np.ndarray, float]]) -> list[Run]:
+        """The runs of the tasks, in order."""
+        if self.pool is None:
+            return [self.problem.run(values, states) for values, states, _ in tasks]
+        runs: list[Run] = self.pool.map(_worker_run, tasks, chunksize=1)
+        return runs
+
+    def close(self) -> None:
+        """End the worker processes."""
+        if self.pool is not None:
+            self.pool.terminate()
+            self.pool.join()
+            self.pool = None
+
+    def residuals(self, z: np.ndarray) -> np.ndarray:
+        """The residual vector at z (kept for the Jacobian at the same z)."""
+        values, states = self.problem.unpack(z)
+        residual = self.problem.residuals_of(self.problem.run(values, states), states)
+        self._last = (z.copy(), residual)
+        return residual
+
+    def jacobian(self, z: np.ndarray, parameters: bool = True) -> np.ndarray:
+        """The dense Jacobian at z: the perturbed runs of jacobian_tasks, in the pool if there is one."""
+        last = self._last
+        base = last[1] if last is not None and np.array_equal(last[0], z) else self.residuals(z)
+        runs = self.map(self.problem.jacobian_tasks(z, parameters))
+        return self.problem.jacobian_from(z, base, runs)

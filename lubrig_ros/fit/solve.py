@@ -1,0 +1,326 @@
+"""Bounded nonlinear least squares on the multiple-shooting residuals; errors and identifiability.
+
+scipy.optimize.least_squares (trust-region reflective, bounded by the parameters' physical ranges
+from core/schema.py) minimizes the residuals of fit.shooting. At the solution:
+
+* covariance: s² (JᵀJ)⁻¹ restricted to the parameters, with J's continuity rows weighted
+  COVARIANCE_WEIGHT (the limit of a penalty that makes the segments one trajectory: the states are
+  then no extra freedom) and s² the data residuals' mean square per degree of freedom (the noise
+  estimate corrected by what the model leaves); standard errors in the parameters' units (delta
+  method through θ = ln p where the range is positive);
+* identifiability: a parameter is named as not determined by the data when its relative standard
+  error exceeds MAX_RELATIVE_ERROR, when its correlation with another free parameter exceeds
+  MAX_CORRELATION in magnitude, or when it takes part in a near-null direction of the parameters'
+  information (eigenvalue of the correlation-scaled information below MIN_EIGENVALUE: a
+  combination the data cannot see, such as A·G and A·η_ref, which are all μ depends on).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.sparse import csr_matrix
+
+from ..core.presets import RunConfig
+from .data import MeasuredData
+from .parameters import FreeParameter, current_value, free_parameters
+from .shooting import DEFECT_WEIGHT, Runner, ShootingProblem
+
+#: Weight of the continuity rows when the covariance is computed (the penalty's limit).
+COVARIANCE_WEIGHT = 1e3
+#: A correlation above this (in magnitude) names both parameters.
+MAX_CORRELATION = 0.99
+#: A relative standard error above this names the parameter.
+MAX_RELATIVE_ERROR = 1.0
+#: Eigenvalue of the correlation-scaled information below which a direction counts as unseen.
+MIN_EIGENVALUE = 1e-8
+#: Residual RMS above this multiple of a stream's noise estimate: the fitted model does not
+#: explain the data (a local minimum, a model that cannot, or parameters that should be free).
+MAX_MISFIT = 1.5
+#: The first stage (states alone) only prepares the second: a coarse tolerance, few evaluations.
+STATE_STAGE_FTOL = 1e-4
+STATE_STAGE_EVALUATIONS = 10
+#: Default length of a shooting segment, s.
+SEGMENT_SECONDS = 0.25
+
+
+@dataclass
+class FitResult:
+    """What a fit found (fit.json is its to_dict)."""
+
+    parameters: list[FreeParameter]
+    start: np.ndarray
+    values: np.ndarray
+    errors: np.ndarray
+    correlation: np.ndarray
+    initial_state: np.ndarray  # x(0) m, ẋ(0) m/s
+    initial_state_errors: np.ndarray
+    residual_rms: dict[str, float]
+    noise: dict[str, float]
+    cost: float
+    evaluations: int
+    jacobians: int
+    status: str
+    success: bool
+    segments: int
+    segment_seconds: float
+    wall_time: float
+    workers: int
+    undetermined: dict[str, str] = field(default_factory=dict)
+    config: RunConfig | None = None
+    states: np.ndarray | None = None
+    #: the fitted model at every sample (the shooting segments), by measured stream
+    model: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def misfit(self) -> dict[str, float]:
+        """Streams whose residual RMS exceeds MAX_MISFIT noise estimates: stream → RMS / noise."""
+        ratios = {name: rms / self.noise[name] for name, rms in self.residual_rms.items()}
+        return {name: ratio for name, ratio in ratios.items() if ratio > MAX_MISFIT}
+
+    @property
+    def names(self) -> list[str]:
+        """The free parameters' names."""
+        return [p.name for p in self.parameters]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready estimates, errors, correlation, residuals, cost, iterations, identifiability."""
+        estimates = {
+            p.name: {
+                "value": float(v),
+                "standard_error": _json_float(e),
+                "unit": p.unit,
+                "start": float(s),
+                "bounds": [p.spec.low, p.spec.high],
+                "identifiable": p.name not in self.undetermined,
+            }
+            for p, v, e, s in zip(self.parameters, self.values, self.errors, self.start, strict=True)
+        }
+        return {
+            "estimates": estimates,
+            "correlation": {
+                "names": self.names,
+                "matrix": [[_json_float(c) for c in row] for row in self.correlation],
+            },
+            "undetermined": self.undetermined,
+            "initial_state": {
+                "displacement_m": float(self.initial_state[0]),
+                "displacement_standard_error_m": _json_float(self.initial_state_errors[0]),
+                "velocity_m_s": float(self.initial_state[1]),
+                "velocity_standard_error_m_s": _json_float(self.initial_state_errors[1]),
+            },
+            "residual_rms": self.residual_rms,
+            "misfit": self.misfit(),
+            "noise_estimate": self.noise,
+            "cost": self.cost,
+            "function_evaluations": self.evaluations,
+            "jacobian_evaluations": self.jacobians,
+            "status": self.status,
+            "success": self.success,
+            "method": {
+                "name": "multiple shooting, scipy.optimize.least_squares (trf, bounded)",
+                "segments": self.segments,
+                "segment_s": self.segment_seconds,
+                "defect_weight": DEFECT_WEIGHT,
+                "workers": self.workers,
+                "wall_time_s": self.wall_time,
+            },
+        }
+
+
+def _json_float(value: float) -> float | None:
+    """A finite float, or None (JSON has no inf/NaN) for an error the data cannot bound."""
+    return float(value) if math.isfinite(value) else None
+
+
+def information_matrix(problem: ShootingProblem, jac: np.ndarray) -> np.ndarray:
+    """JᵀJ with the continuity rows weighted COVARIANCE_WEIGHT instead of the fit's weight."""
+    rows = problem.data_rows()
+    data, defects = jac[:rows], jac[rows:]
+    factor = (COVARIANCE_WEIGHT / problem.defect_weight) ** 2
+    return np.asarray(data.T @ data + factor * (defects.T @ defects))
+
+
+def covariance(problem: ShootingProblem, information: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """Covariance of z: s² (JᵀJ)⁺, s² the data residuals' mean square per degree of freedom."""
+    rows = problem.data_rows()
+    dof = max(rows - information.shape[0], 1)
+    s2 = float(residual[:rows] @ residual[:rows]) / dof
+    return np.asarray(s2 * np.linalg.pinv(information, rcond=1e-15, hermitian=True))
+
+
+def parameter_information(problem: ShootingProblem, information: np.ndarray) -> np.ndarray:
+    """Information of the parameters with the states eliminated (Schur complement), in θ."""
+    count = len(problem.parameters)
+    pp, ps, ss = information[:count, :count], information[:count, count:], information[count:, count:]
+    return np.asarray(pp - ps @ np.linalg.pinv(ss, rcond=1e-15, hermitian=True) @ ps.T)
+
+
+def undetermined(
+    parameters: list[FreeParameter],
+    values: np.ndarray,
+    errors: np.ndarray,
+    correlation: np.ndarray,
+    info: np.ndarray,
+) -> dict[str, str]:
+    """Each parameter the data cannot determine, with why (see the module's docstring)."""
+    names = [p.name for p in parameters]
+    found: dict[str, list[str]] = {}
+    for j, p in enumerate(parameters):
+        reference = abs(values[j]) or (p.spec.high - p.spec.low)
+        if not math.isfinite(errors[j]) or errors[j] > MAX_RELATIVE_ERROR * reference:
+            found.setdefault(p.name, []).append(
+                f"standard error {errors[j]:.3g}{p.spec.unit_text} exceeds "
+                f"{MAX_RELATIVE_ERROR:.0%} of the value"
+            )
+        for k in range(len(parameters)):
+            if k != j and abs(correlation[j, k]) > MAX_CORRELATION:
+                found.setdefault(p.name, []).append(f"correlation {correlation[j, k]:+.4f} with {names[k]}")
+    diagonal = np.sqrt(np.clip(np.diag(info), 0.0, None))
+    scale = np.where(diagonal > 0.0, diagonal, 1.0)
+    eigenvalues, vectors = np.linalg.eigh(info / np.outer(scale, scale))
+    top = max(float(eigenvalues.max()), 1e-300)
+    for value, vector in zip(eigenvalues, vectors.T, strict=True):
+        if value < MIN_EIGENVALUE * top:
+            weight = np.abs(vector)
+            members = [names[j] for j in range(len(names)) if weight[j] >= 0.25 * weight.max()]
+            combination = " + ".join(f"{vector[names.index(m)]:+.2f}·{m}" for m in members)
+            for member in members:
+                found.setdefault(member, []).append(
+                    f"near-singular Jacobian: the data do not see the combination {combination} (in θ)"
+                )
+    for j, p in enumerate(parameters):
+        if diagonal[j] == 0.0:
+            found.setdefault(p.name, []).append(
+                "no information left once the segments' start states are fitted (they absorb it)"
+            )
+    return {name: "; ".join(dict.fromkeys(reasons)) for name, reasons in found.items()}
+
+
+def fit(
+    data: MeasuredData,
+    config: RunConfig,
+    names: list[str],
+    segment_seconds: float = SEGMENT_SECONDS,
+    workers: int = 1,
+    max_evaluations: int = 60,
+) -> FitResult:
+    """Estimate the named parameters of `config` from `data`, started from `config`'s values."""
+    started = time.perf_counter()
+    parameters = free_parameters(names, config)
+    samples = max(2, round(segment_seconds * data.sample_rate))
+    problem = ShootingProblem(data, config, parameters, samples)
+    start = np.array([current_value(config, p) for p in parameters])
+    low, high = problem.bounds()
+    theta = np.array([p.to_theta(v) for p, v in zip(parameters, start, strict=True)])
+    theta = np.clip(
+        theta, low[: theta.size] + 1e-9 * np.abs(low[: theta.size]) + 1e-12, high[: theta.size] - 1e-9
+    )
+    z0 = np.concatenate([theta, problem.pack(start, problem.initial_states(start))[len(parameters) :]])
+    runner = Runner(problem, workers)
+    try:
+        z0 = _fit_states(runner, z0, len(parameters), max_evaluations)
+        solution = least_squares(
+            runner.residuals,
+            z0,
+            jac=lambda z: csr_matrix(runner.jacobian(z)),
+            bounds=(low, high),
+            method="trf",
+            tr_solver="lsmr",
+            x_scale=1.0,
+            max_nfev=max_evaluations,
+        )
+        jac = runner.jacobian(solution.x)
+    finally:
+        runner.close()
+    return _result(problem, parameters, start, solution, jac, workers, time.perf_counter() - started)
+
+
+def _fit_states(runner: Runner, z0: np.ndarray, count: int, max_evaluations: int) -> np.ndarray:
+    """z0 with the segment states fitted to the data at the start parameters (the first stage).
+
+    States taken from the smoothed data are off where the mass slips (a fast velocity the
+    smoothing flattens) and noisy where it sticks; fitted first with the parameters held, the
+    segments start close to a trajectory of the start rig, and the full fit then moves the
+    parameters from there instead of chasing slips with them.
+    """
+    theta = z0[:count]
+
+    def fun(states: np.ndarray) -> np.ndarray:
+        return runner.residuals(np.concatenate([theta, states]))
+
+    def jac(states: np.ndarray) -> csr_matrix:
+        return csr_matrix(runner.jacobian(np.concatenate([theta, states]), parameters=False)[:, count:])
+
+    solution = least_squares(
+        fun,
+        z0[count:],
+        jac=jac,
+        method="trf",
+        tr_solver="lsmr",
+        ftol=STATE_STAGE_FTOL,
+        max_nfev=min(max_evaluations, STATE_STAGE_EVALUATIONS),
+    )
+    return np.concatenate([theta, solution.x])
+
+
+def _result(
+    problem: ShootingProblem,
+    parameters: list[FreeParameter],
+    start: np.ndarray,
+    solution: Any,
+    jac: np.ndarray,
+    workers: int,
+    wall: float,
+) -> FitResult:
+    values, states = problem.unpack(solution.x)
+    information = information_matrix(problem, jac)
+    cov = covariance(problem, information, solution.fun)
+    count = len(parameters)
+    info = parameter_information(problem, information)
+    theta_errors = np.sqrt(np.clip(np.diag(cov)[:count], 0.0, None))
+    errors = np.array(
+        [p.physical_error(v, e) for p, v, e in zip(parameters, values, theta_errors, strict=True)]
+    )
+    block = cov[:count, :count]
+    scale = np.where(theta_errors > 0, theta_errors, 1.0)
+    correlation = block / np.outer(scale, scale)
+    initial_errors = np.sqrt(np.clip(np.diag(cov)[count : count + 2], 0.0, None)) * np.array(
+        problem.state_scale
+    )
+    n = problem.data.time.size
+    rms = {}
+    model = {}
+    for k, (name, measured) in enumerate(problem.data.streams.items()):
+        r = solution.fun[k * n : (k + 1) * n] * problem.sigma[name]
+        rms[name] = float(np.sqrt(np.mean(r**2)))
+        model[name] = measured + r
+    result = FitResult(
+        parameters=parameters,
+        start=start,
+        values=values,
+        errors=errors,
+        correlation=correlation,
+        initial_state=states[0],
+        initial_state_errors=initial_errors,
+        residual_rms=rms,
+        noise=dict(problem.sigma),
+        cost=float(solution.cost),
+        evaluations=int(solution.nfev),
+        jacobians=int(solution.njev or 0),
+        status=str(solution.message),
+        success=bool(solution.success),
+        segments=problem.segments,
+        segment_seconds=problem.segment_samples / problem.data.sample_rate,
+        wall_time=wall,
+        workers=workers,
+        config=problem.config_for(values),
+        states=states,
+        model=model,
+    )
+    result.undetermined = undetermined(parameters, values, errors, correlation, info)
+    return result
