@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from lubrig_ros.core.friction_laws import KernelLaw, register_law
-from lubrig_ros.core.kernels import law_kernel
+from lubrig_ros.core.friction_laws import law_kernel
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ import pytest
 from lubrig_ros.app import contract
 from lubrig_ros.app.plant_config import config_from
 from lubrig_ros.core import schema
-from lubrig_ros.core.friction_laws import law_parameters
+from lubrig_ros.core.friction_laws import law_names, law_parameters
 from lubrig_ros.core.params import ParameterError
 from lubrig_ros.core.presets import SIMULATION_KEYS, config_dir, default_config, from_mapping
 from lubrig_ros.core.profiles import ConstantBand, ProfileParameters, profile_class
@@ -71,7 +71,8 @@ def test_nodes_yaml_comments_state_the_contract_range():
 
 
 def test_the_schema_covers_every_field_of_the_laws_kinds_and_simulation():
-    for law, table in schema.FRICTION_FIELDS.items():
+    for law in law_names():
+        table = schema.friction_fields(law)
         assert set(table) == {f.name for f in fields(law_parameters(law))}, law
     numeric = {"constant": {"velocity"}, "table": {"velocities"}}
     for kind, table in schema.BAND_FIELDS.items():

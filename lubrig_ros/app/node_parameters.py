@@ -120,7 +120,7 @@ FRICTION_LAW = _p(
 def _friction_parameter(law: str, name: str) -> NodeParameter:
     spec = schema.friction_field(law, name)
     text = f"friction law {name}; applied at the next reset"
-    if spec is None:  # a registered law without ranges in core/schema.py: checked by its dataclass
+    if spec is None:  # a registered law without `ranges`: checked by its dataclass
         return _p(
             f"friction.{name}",
             "double",

@@ -6,13 +6,15 @@ A friction law is one module (see docs/extending.md) holding
   attribute ``law`` (the registry name) and a field ``normal_force`` (N, the load the rig's force
   N μ is made of);
 * its **compiled kernel**: a numba function ``(v: float, p: float64[::1]) -> (μ, dμ/dv)`` decorated
-  with :func:`lubrig_ros.core.kernels.law_kernel`, odd μ / even slope, finite for every finite v
+  with :func:`law_kernel`, odd μ / even slope, finite for every finite v
   (v = 0 included, where a law may return an infinite slope); ``p`` is ``pack(params)``;
 * optional **landmarks**: the friction peak (end of the rising zone 1, the stick threshold) and the
   minimum (start of the rising zone 3), or None when the law has none with these parameters;
-* one line in :data:`BUILTIN_LAWS` (its registration), or a call to :func:`register_law`; a
-  built-in law's parameter dataclass is declared in core.params and named in
-  :data:`BUILTIN_PARAMETERS`, so that :func:`law_parameters` finds it without numba.
+* one line in :data:`BUILTIN_LAWS` (its registration), or a call to :func:`register_law`. The
+  kernel compiles when first used (:class:`LawKernel`), so importing the module is light and
+  :func:`law_parameters` imports it to find the parameters; only the junction law, whose
+  module compiles helpers with numba at import, names its dataclass in
+  :data:`BUILTIN_PARAMETERS` (it lives in core.params).
 
 Vectorized μ(v) and dμ/dv come with :class:`KernelLaw` (the kernel looped over an array through the
 one compiled adapter, core.kernels.evaluate_law), so a law only writes its scalar kernel.
@@ -25,6 +27,7 @@ from __future__ import annotations
 
 import importlib
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, fields, is_dataclass
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
@@ -48,8 +51,44 @@ BUILTIN_LAWS: dict[str, str] = {
 #: parameters, and a law's module imports numba (about 1 s of every node's start-up).
 BUILTIN_PARAMETERS: dict[str, str] = {
     "junction_kinetics": "lubrig_ros.core.params:FrictionParameters",
-    "stribeck": "lubrig_ros.core.params:StribeckParameters",
 }
+
+
+class LawKernel:
+    """A law's scalar kernel (v, p) -> (μ, dμ/dv), compiled by numba when first used.
+
+    So importing a law's module costs no numba (about 1 s of CPU): the topic contract, the
+    parameter descriptors and configuration loading need only its parameters. Compiled for
+    core.kernels.LAW_SIGNATURE with numba's on-disk cache (keyed on the kernel's own file);
+    `py_func` is the Python function, `dispatcher` the compiled one.
+    """
+
+    def __init__(self, function: Callable[..., tuple[float, float]]) -> None:
+        self.py_func = function
+        self.__name__, self.__qualname__ = function.__name__, function.__qualname__
+        self.__module__, self.__doc__ = function.__module__, function.__doc__
+        self._dispatcher: Any = None
+
+    @property
+    def dispatcher(self) -> Any:
+        """The numba dispatcher, compiled on the first call."""
+        if self._dispatcher is None:
+            from numba import njit
+
+            from .kernels import LAW_SIGNATURE
+
+            self._dispatcher = njit(LAW_SIGNATURE, cache=True)(self.py_func)
+        return self._dispatcher
+
+    def __call__(self, v: float, p: np.ndarray) -> tuple[float, float]:
+        """μ(v) and dμ/dv through the compiled kernel."""
+        result: tuple[float, float] = self.dispatcher(v, p)
+        return result
+
+
+def law_kernel(function: Callable[..., tuple[float, float]]) -> LawKernel:
+    """Decorator of a law's scalar kernel: compiled by numba when first used (LawKernel)."""
+    return LawKernel(function)
 
 
 @dataclass(frozen=True)
@@ -76,7 +115,7 @@ class FrictionLaw(Protocol):
 
     @property
     def kernel(self) -> Any:
-        """The numba dispatcher (v, p) -> (μ, dμ/dv), compiled with core.kernels.law_kernel."""
+        """The kernel (v, p) -> (μ, dμ/dv): a LawKernel (law_kernel) or a numba dispatcher."""
         ...
 
     def pack(self, params: Any) -> np.ndarray:
@@ -220,7 +259,7 @@ def law_parameters(name: str) -> type[Any]:
         module, attribute = BUILTIN_PARAMETERS[name].split(":")
         kind: type[Any] = getattr(importlib.import_module(module), attribute)
         return kind
-    return law_named(name).parameters
+    return law_named(name).parameters  # a law module imports no numba (LawKernel): light
 
 
 def law_for(params: Any) -> FrictionLaw:

@@ -21,8 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .friction_laws import CurveLandmark, KernelLaw, register_law
-from .kernels import law_kernel
+from .friction_laws import CurveLandmark, KernelLaw, law_kernel, register_law
 from .params import FrictionParameters
 
 # Below this u = v0/v the closed forms cancel catastrophically: use series instead.

@@ -2,8 +2,8 @@
 
 Friction laws reach the compiled code through one adapter (this module):
 
-* a law's scalar kernel ``(v, p) -> (μ, dμ/dv)`` is decorated with :func:`law_kernel` (compiled for
-  :data:`LAW_SIGNATURE`: v float64, p a contiguous float64 array);
+* a law's scalar kernel ``(v, p) -> (μ, dμ/dv)`` is decorated with core.friction_laws.law_kernel
+  (compiled for :data:`LAW_SIGNATURE` when first used: v float64, p a contiguous float64 array);
 * :func:`advance` (the stepper) and :func:`evaluate_law` (vectorized μ, dμ/dv) take the kernel as
   an argument and run a copy of the stepper specialized for it (:func:`specialize`): the same
   source, with the global ``_LAW`` bound to the kernel, so numba inlines the law as it did when the
@@ -41,7 +41,6 @@ import math
 import os
 import re
 import types as pytypes
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -52,14 +51,6 @@ from numba.core import caching as _caching
 LAW_PARAMETERS = types.Array(types.float64, 1, "C")
 #: Signature every law kernel is compiled for: (v, p) -> (μ, dμ/dv).
 LAW_SIGNATURE = types.UniTuple(types.float64, 2)(types.float64, LAW_PARAMETERS)
-
-
-def law_kernel(function: Callable[..., tuple[float, float]]) -> Any:
-    """Decorator: compile a friction law's scalar kernel (v, p) -> (μ, dμ/dv) for the stepper.
-
-    Compiled eagerly for LAW_SIGNATURE with numba's on-disk cache (keyed on the kernel's own file).
-    """
-    return njit(LAW_SIGNATURE, cache=True)(function)
 
 
 # Placeholders: each law's specialized copy of the functions below binds these globals to the law's
@@ -462,6 +453,7 @@ def specialize(kernel: Any) -> tuple[Any, Any]:
     binds both once (a per-sample call then costs what it did with one built-in law).
     """
     py_func = kernel.py_func
+    kernel = getattr(kernel, "dispatcher", kernel)  # a LawKernel compiles here, when first used
     files = (os.path.abspath(inspect.getfile(py_func)),)
     tag = re.sub(r"\W", "_", f"{py_func.__module__}.{py_func.__qualname__}")
     step = njit(cache=True)(_clone(_radau_step_py, tag, {"_LAW": kernel}, files))

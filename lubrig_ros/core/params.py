@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from typing import Any, ClassVar, Literal
 
 from .friction_laws import DEFAULT_LAW, law_parameters
-from .schema import RIG_FIELDS, friction_field
+from .schema import JUNCTION_KINETICS_FIELDS, RIG_FIELDS, FieldSpec
 from .validation import ParameterError, _check_finite, _check_positive, _check_range
 
 __all__ = [
@@ -23,7 +23,6 @@ __all__ = [
     "FrictionParameters",
     "ParameterError",
     "RigParameters",
-    "StribeckParameters",
     "_check_finite",
     "_check_positive",
     "_check_range",
@@ -58,6 +57,8 @@ class FrictionParameters:
 
     The default law (core.junction); its fields are the compiled kernel's p in this order.
     """
+
+    ranges: ClassVar[dict[str, FieldSpec]] = JUNCTION_KINETICS_FIELDS  # physical ranges (schema)
 
     law: ClassVar[str] = "junction_kinetics"
 
@@ -103,36 +104,6 @@ class FrictionParameters:
         return replace(self, contact_area=choice)
 
 
-@dataclass(frozen=True)
-class StribeckParameters:
-    """Parameters of the Stribeck law (core/stribeck.py; SI; fields in this order are its kernel's p)."""
-
-    law: ClassVar[str] = "stribeck"
-
-    static_coefficient: float = 0.16  # μ_s, ≥ 0
-    kinetic_coefficient: float = 0.006  # μ_c, ≥ 0
-    stribeck_velocity: float = 2e-9  # v_s, m/s, > 0
-    stribeck_exponent: float = 0.5  # δ, in (0, 10]
-    viscous_coefficient: float = 1400.0  # μ_v, s/m, ≥ 0
-    regularization_velocity: float = 1e-12  # v_r, m/s, > 0
-    normal_force: float = 1e-3  # N, N, > 0
-
-    def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if f.name in ("static_coefficient", "kinetic_coefficient", "viscous_coefficient"):
-                number = _check_finite(f.name, value)
-                if number < 0.0:
-                    raise ParameterError(f"{f.name}={value!r} must be >= 0")
-            elif f.name == "stribeck_exponent":
-                number = _check_finite(f.name, value)
-                if not 0.0 < number <= 10.0:
-                    raise ParameterError(f"{f.name}={value!r} is outside the valid range (0, 10]")
-            else:
-                number = _check_positive(f.name, value)
-            object.__setattr__(self, f.name, float(number))
-
-
 def convention_coupling(convention: str, natural_frequency: float) -> float:
     """γ of a named convention for a rig of natural frequency f0 (Hz)."""
     if convention == "physical":
@@ -147,7 +118,7 @@ def convention_coupling(convention: str, natural_frequency: float) -> float:
 def check_rig_ranges(rig: RigParameters) -> None:
     """ParameterError naming the first of a run's rig values outside its physical range.
 
-    The ranges are core/schema.py's (RIG_FIELDS, and FRICTION_FIELDS of the rig's friction law),
+    The ranges are core/schema.py's RIG_FIELDS and the `ranges` of the rig's friction law's dataclass,
     with the cross-check d <= D of the junction-kinetics law. RigParameters itself does not check
     them: the linear stability analysis explores damping ratios far beyond a rig's (ζ_crit reaches
     1e5 with γ = 1).
@@ -156,9 +127,9 @@ def check_rig_ranges(rig: RigParameters) -> None:
         RIG_FIELDS[name].check(getattr(rig, name))
     if rig.velocity_coupling is not None:
         RIG_FIELDS["velocity_coupling"].check(rig.velocity_coupling)
-    law = type(rig.friction).law
+    ranges: dict[str, FieldSpec] = getattr(type(rig.friction), "ranges", {})
     for f in fields(rig.friction):
-        spec = friction_field(law, f.name)
+        spec = ranges.get(f.name)
         if spec is not None:
             spec.check(getattr(rig.friction, f.name))
     inner = getattr(rig.friction, "interpenetration_thickness", None)

@@ -27,9 +27,10 @@ from .validation import ParameterError, _check_finite
 __all__ = [
     "BAND_FIELDS",
     "BAND_VELOCITY_LIMIT",
-    "FRICTION_FIELDS",
+    "JUNCTION_KINETICS_FIELDS",
     "MAX_SAMPLES",
     "MIN_SAMPLES_PER_PERIOD",
+    "NORMAL_FORCE",
     "RIG_FIELDS",
     "SAMPLE_FIELDS",
     "SAMPLE_UNITS",
@@ -37,7 +38,9 @@ __all__ = [
     "FieldSpec",
     "SampleField",
     "band_field",
+    "field_table",
     "friction_field",
+    "friction_fields",
     "unit_column",
 ]
 
@@ -95,7 +98,8 @@ class FieldSpec:
         return number
 
 
-def _table(*specs: FieldSpec) -> dict[str, FieldSpec]:
+def field_table(*specs: FieldSpec) -> dict[str, FieldSpec]:
+    """Field specs by name, in order."""
     return {s.name: s for s in specs}
 
 
@@ -108,9 +112,9 @@ MIN_SAMPLES_PER_PERIOD = 20
 #: `lubrig simulate` can hold in this machine's memory is checked there on top.
 MAX_SAMPLES = 1_000_000_000
 
-_NORMAL_FORCE = FieldSpec("normal_force", "N", 1e-9, 10.0, "normal force pressing the mass on the band", "N")
+NORMAL_FORCE = FieldSpec("normal_force", "N", 1e-9, 10.0, "normal force pressing the mass on the band", "N")
 
-RIG_FIELDS: dict[str, FieldSpec] = _table(
+RIG_FIELDS: dict[str, FieldSpec] = field_table(
     FieldSpec("mass", "kg", 1e-4, 1e3, "mass of the slider", "m"),
     FieldSpec("natural_frequency", "Hz", 1e-2, 500.0, "natural frequency, k = m (2π f0)²", "f0"),
     FieldSpec("damping_ratio", "1", 0.0, 2.0, "damping ratio, c = 2 ζ sqrt(k m) (0: undamped)", "ζ"),
@@ -122,44 +126,34 @@ RIG_FIELDS: dict[str, FieldSpec] = _table(
         "explicit γ in v_rel = v_band − γ ẋ (s/s; physical 1, paper 1/ω0, hertz 1/f0)",
         "γ",
     ),
-    _NORMAL_FORCE,
+    NORMAL_FORCE,
 )
 
-#: Per friction law (core.friction_laws registry name): the ranges of its parameter fields.
-FRICTION_FIELDS: dict[str, dict[str, FieldSpec]] = {
-    "junction_kinetics": _table(
-        FieldSpec("shear_modulus", "Pa", 1e3, 1e11, "shear modulus of the confined interface", "G"),
-        FieldSpec("interface_thickness", "m", 1e-10, 1e-6, "interface thickness", "D"),
-        FieldSpec(
-            "interpenetration_thickness",
-            "m",
-            1e-12,
-            1e-6,
-            "interpenetration zone thickness (at most D)",
-            "d",
-        ),
-        FieldSpec("yield_distance", "m", 1e-12, 1e-6, "yield distance of a junction", "l*"),
-        FieldSpec("thermal_break_time", "s", 1e-6, 1e6, "thermal break time at zero force", "τ0"),
-        FieldSpec("reference_activation_time", "s", 1e-6, 1e6, "reference activation time", "τ_ref"),
-        FieldSpec("reference_velocity", "m/s", 1e-15, 1.0, "reference velocity", "v_ref"),
-        FieldSpec("activation_exponent", "1", -1.0, 0.0, "activation-time power index", "k1"),
-        FieldSpec("reference_viscosity", "Pa·s", 1e-4, 1e6, "reference viscosity", "η_ref"),
-        FieldSpec("shear_thinning_exponent", "1", -1.0, 0.0, "shear-thinning power index", "k2"),
-        FieldSpec("contact_area", "m²", 1e-14, 1e-4, "contact area (corrected 2.83e-10 m²)", "A"),
-        _NORMAL_FORCE,
+#: The ranges of the junction-kinetics law's fields (core.params.FrictionParameters.ranges); every
+#: other law states its own on its parameter dataclass (`ranges`, e.g. core/stribeck.py).
+JUNCTION_KINETICS_FIELDS: dict[str, FieldSpec] = field_table(
+    FieldSpec("shear_modulus", "Pa", 1e3, 1e11, "shear modulus of the confined interface", "G"),
+    FieldSpec("interface_thickness", "m", 1e-10, 1e-6, "interface thickness", "D"),
+    FieldSpec(
+        "interpenetration_thickness",
+        "m",
+        1e-12,
+        1e-6,
+        "interpenetration zone thickness (at most D)",
+        "d",
     ),
-    "stribeck": _table(
-        FieldSpec("static_coefficient", "1", 0.0, 10.0, "static friction coefficient", "μ_s"),
-        FieldSpec("kinetic_coefficient", "1", 0.0, 10.0, "kinetic (Coulomb) friction coefficient", "μ_c"),
-        FieldSpec("stribeck_velocity", "m/s", 1e-15, 1.0, "Stribeck velocity", "v_s"),
-        FieldSpec("stribeck_exponent", "1", 0.0, 10.0, "Stribeck exponent", "δ", low_open=True),
-        FieldSpec("viscous_coefficient", "s/m", 0.0, 1e12, "viscous coefficient", "μ_v"),
-        FieldSpec("regularization_velocity", "m/s", 1e-18, 1e-3, "regularization velocity near v = 0", "v_r"),
-        _NORMAL_FORCE,
-    ),
-}
+    FieldSpec("yield_distance", "m", 1e-12, 1e-6, "yield distance of a junction", "l*"),
+    FieldSpec("thermal_break_time", "s", 1e-6, 1e6, "thermal break time at zero force", "τ0"),
+    FieldSpec("reference_activation_time", "s", 1e-6, 1e6, "reference activation time", "τ_ref"),
+    FieldSpec("reference_velocity", "m/s", 1e-15, 1.0, "reference velocity", "v_ref"),
+    FieldSpec("activation_exponent", "1", -1.0, 0.0, "activation-time power index", "k1"),
+    FieldSpec("reference_viscosity", "Pa·s", 1e-4, 1e6, "reference viscosity", "η_ref"),
+    FieldSpec("shear_thinning_exponent", "1", -1.0, 0.0, "shear-thinning power index", "k2"),
+    FieldSpec("contact_area", "m²", 1e-14, 1e-4, "contact area (corrected 2.83e-10 m²)", "A"),
+    NORMAL_FORCE,
+)
 
-SIMULATION_FIELDS: dict[str, FieldSpec] = _table(
+SIMULATION_FIELDS: dict[str, FieldSpec] = field_table(
     FieldSpec("duration", "s", 0.0, 1e6, "run length in rig time", low_open=True),
     FieldSpec("sample_rate", "Hz", 1.0, 1e5, "output samples per second of rig time"),
     FieldSpec("rtol", "1", 1e-13, 1e-2, "relative tolerance of the Radau IIA integrator"),
@@ -169,26 +163,37 @@ SIMULATION_FIELDS: dict[str, FieldSpec] = _table(
 _V = BAND_VELOCITY_LIMIT
 #: Per band profile kind (core.profiles registry name): the ranges of its numeric fields.
 BAND_FIELDS: dict[str, dict[str, FieldSpec]] = {
-    "constant": _table(FieldSpec("velocity", "m/s", -_V, _V, "band velocity")),
-    "cycle": _table(
+    "constant": field_table(FieldSpec("velocity", "m/s", -_V, _V, "band velocity")),
+    "cycle": field_table(
         FieldSpec("low_velocity", "m/s", -_V, _V, "V1, the lower plateau", "V1"),
         FieldSpec("high_velocity", "m/s", -_V, _V, "V2, the upper plateau (> V1)", "V2"),
         FieldSpec("plateau_time", "s", 0.0, 1e6, "both plateaus together", "T_c"),
         FieldSpec("ramp_time", "s", 0.0, 1e6, "both ramps together", "T_ramp", low_open=True),
     ),
-    "sine": _table(
+    "sine": field_table(
         FieldSpec("mean_velocity", "m/s", -_V, _V, "mean band velocity"),
         FieldSpec("amplitude", "m/s", 0.0, _V, "amplitude (|mean| + amplitude within the limit)"),
         FieldSpec("frequency", "Hz", 0.0, 5e4, "frequency (at most half the sample rate)", low_open=True),
         FieldSpec("phase", "rad", -2.0 * math.pi, 2.0 * math.pi, "phase at t = 0"),
     ),
-    "table": _table(FieldSpec("velocities", "m/s", -_V, _V, "band velocities of the table rows")),
+    "table": field_table(FieldSpec("velocities", "m/s", -_V, _V, "band velocities of the table rows")),
 }
 
 
+def friction_fields(law: str) -> dict[str, FieldSpec]:
+    """The ranges of friction law `law`'s fields: its parameter dataclass's `ranges` (empty: none).
+
+    ParameterError naming the valid laws for an unknown one.
+    """
+    from .friction_laws import law_parameters  # the registry: imported when first asked
+
+    ranges: dict[str, FieldSpec] = getattr(law_parameters(law), "ranges", {})
+    return ranges
+
+
 def friction_field(law: str, name: str) -> FieldSpec | None:
-    """The range of friction law `law`'s field `name`, None for a law or field without one."""
-    return FRICTION_FIELDS.get(law, {}).get(name)
+    """The range of friction law `law`'s field `name`, None for a field without one."""
+    return friction_fields(law).get(name)
 
 
 def band_field(name: str) -> FieldSpec | None:

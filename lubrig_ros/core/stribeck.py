@@ -32,14 +32,60 @@ then undefined (None in summaries and flags, ParameterError from friction_peak/f
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, fields
+from typing import ClassVar
 
 import numpy as np
 
-from .friction_laws import KernelLaw, register_law
-from .kernels import law_kernel
-from .params import StribeckParameters
+from .friction_laws import KernelLaw, law_kernel, register_law
+from .schema import NORMAL_FORCE, FieldSpec, field_table
+from .validation import ParameterError, _check_finite, _check_positive
 
 __all__ = ["Stribeck", "StribeckParameters", "stribeck_kernel"]
+
+
+@dataclass(frozen=True)
+class StribeckParameters:
+    """Parameters of the Stribeck law (SI; fields in this order are its kernel's p).
+
+    `ranges` are a rig's physical ranges (core/schema.py FieldSpec), which every run
+    configuration is checked against; the dataclass itself asks only for values the formula
+    can take (the linear stability analysis explores beyond a rig's ranges).
+    """
+
+    law: ClassVar[str] = "stribeck"
+    ranges: ClassVar[dict[str, FieldSpec]] = field_table(
+        FieldSpec("static_coefficient", "1", 0.0, 10.0, "static friction coefficient", "μ_s"),
+        FieldSpec("kinetic_coefficient", "1", 0.0, 10.0, "kinetic (Coulomb) friction coefficient", "μ_c"),
+        FieldSpec("stribeck_velocity", "m/s", 1e-15, 1.0, "Stribeck velocity", "v_s"),
+        FieldSpec("stribeck_exponent", "1", 0.0, 10.0, "Stribeck exponent", "δ", low_open=True),
+        FieldSpec("viscous_coefficient", "s/m", 0.0, 1e12, "viscous coefficient", "μ_v"),
+        FieldSpec("regularization_velocity", "m/s", 1e-18, 1e-3, "regularization velocity near v = 0", "v_r"),
+        NORMAL_FORCE,
+    )
+
+    static_coefficient: float = 0.16  # μ_s, ≥ 0
+    kinetic_coefficient: float = 0.006  # μ_c, ≥ 0
+    stribeck_velocity: float = 2e-9  # v_s, m/s, > 0
+    stribeck_exponent: float = 0.5  # δ, in (0, 10]
+    viscous_coefficient: float = 1400.0  # μ_v, s/m, ≥ 0
+    regularization_velocity: float = 1e-12  # v_r, m/s, > 0
+    normal_force: float = 1e-3  # N, N, > 0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("static_coefficient", "kinetic_coefficient", "viscous_coefficient"):
+                number = _check_finite(f.name, value)
+                if number < 0.0:
+                    raise ParameterError(f"{f.name}={value!r} must be >= 0")
+            elif f.name == "stribeck_exponent":
+                number = _check_finite(f.name, value)
+                if not 0.0 < number <= 10.0:
+                    raise ParameterError(f"{f.name}={value!r} is outside the valid range (0, 10]")
+            else:
+                number = _check_positive(f.name, value)
+            object.__setattr__(self, f.name, float(number))
 
 
 @law_kernel

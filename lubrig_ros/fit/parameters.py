@@ -1,7 +1,7 @@
 """The parameters a fit may free: names, units and physical bounds, all from core/schema.py.
 
 A free parameter is a field of the rig (RIG_FIELDS: damping_ratio, natural_frequency,
-velocity_coupling, mass) or of the run's friction law (FRICTION_FIELDS[law]: for the junction law
+velocity_coupling, mass) or of the run's friction law (their dataclass's `ranges`: for the junction law
 shear_modulus, reference_activation_time, activation_exponent, reference_viscosity,
 shear_thinning_exponent, contact_area, ...; normal_force lives there too). Nothing here repeats a
 unit or a range: each FreeParameter holds the schema's FieldSpec.
@@ -23,7 +23,7 @@ from lubrig_ros.core.errors import InputError
 
 from ..core.friction_laws import law_names
 from ..core.presets import RunConfig
-from ..core.schema import FRICTION_FIELDS, RIG_FIELDS, FieldSpec
+from ..core.schema import RIG_FIELDS, FieldSpec, friction_fields
 
 #: Rig fields a fit may free (normal_force is the friction law's field, named there).
 RIG_SECTION = "rig"
@@ -74,7 +74,7 @@ def _law(config: RunConfig) -> str:
 def fittable_names(config: RunConfig) -> list[str]:
     """Every name --free accepts for this configuration's friction law, rig fields first."""
     rig = [name for name in RIG_FIELDS if name != "normal_force"]
-    return [*rig, *FRICTION_FIELDS.get(_law(config), {})]
+    return [*rig, *friction_fields(_law(config))]
 
 
 def current_value(config: RunConfig, parameter: FreeParameter) -> float:
@@ -89,10 +89,10 @@ def current_value(config: RunConfig, parameter: FreeParameter) -> float:
 def free_parameters(names: list[str], config: RunConfig) -> list[FreeParameter]:
     """The FreeParameter of each name, in the given order; InputError naming a bad one."""
     law = _law(config)
-    if law not in FRICTION_FIELDS:
+    if not friction_fields(law):
         raise InputError(
             f"friction law {law!r} has no physical ranges to fit within; fittable laws: "
-            f"{sorted(set(FRICTION_FIELDS) & set(law_names()))}"
+            f"{sorted(name for name in law_names() if friction_fields(name))}"
         )
     valid = fittable_names(config)
     chosen: list[FreeParameter] = []
@@ -104,7 +104,7 @@ def free_parameters(names: list[str], config: RunConfig) -> list[FreeParameter]:
         if any(p.name == name for p in chosen):
             raise InputError(f"--free {name!r} is given twice; name each parameter once")
         section = RIG_SECTION if name in RIG_FIELDS and name != "normal_force" else FRICTION_SECTION
-        spec = RIG_FIELDS[name] if section == RIG_SECTION else FRICTION_FIELDS[law][name]
+        spec = RIG_FIELDS[name] if section == RIG_SECTION else friction_fields(law)[name]
         probe = FreeParameter(name, section, spec, 1.0)
         value = current_value(config, probe)
         scale = 1.0 if probe.logarithmic else max(abs(value), 1e-2 * (spec.high - spec.low))
