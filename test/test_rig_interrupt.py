@@ -30,7 +30,7 @@ def test_ctrl_c_stops_the_rig_cleanly(ros_env, tmp_path):
     finally:
         if launcher.poll() is None:
             os.killpg(launcher.pid, signal.SIGKILL)
-    assert launcher.returncode == 130, (out, err)
+    assert launcher.returncode == 130, f"exit status {launcher.returncode}\nstdout:\n{out}\nstderr:\n{err}"
     assert "interrupted before the run ended" in out and "nan" not in out, out
     assert "Traceback" not in out + err, (out, err)
     for log in (run / "logs").glob("*.log"):

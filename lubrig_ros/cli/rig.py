@@ -61,7 +61,7 @@ from ..nodes.view import DEFAULT_PORT, HIGHEST_PORT, tcp_port
 from .main import CommandError
 from .progress import Progress
 from .rig_ros import STALL_GIVE_UP_S, namespace_taken, wait_complete
-from .rig_supervisor import GRACE_S, Exit, RigProcessError, Supervisor, stop_all
+from .rig_supervisor import CTRL_C, GRACE_S, Exit, RigProcessError, Supervisor, catch_ctrl_c, stop_all
 
 __all__ = [  # what tests and launch/rig.launch.py take from here
     "CLEAN_EXITS",
@@ -225,8 +225,10 @@ def _run_phase(sup: Supervisor, plan: RigPlan, config: RunConfig, timeout: float
     if plan.mode == "sim":
         limit = timeout if timeout else max(60.0, 10.0 * config.duration)
         stall: list[str] = []
-        complete = wait_complete(start + limit, sup.procs, plan.namespace, bar, stall)
+        complete = wait_complete(start + limit, sup.procs, plan.namespace, bar, stall, CTRL_C.is_set)
         bar.finish()
+        if CTRL_C.is_set():
+            raise KeyboardInterrupt
         if complete:
             return
         if stall:
@@ -236,10 +238,12 @@ def _run_phase(sup: Supervisor, plan: RigPlan, config: RunConfig, timeout: float
             raise RigProcessError(f"sim run did not complete within {limit:g} s (--timeout); see {sup.logs}")
         return
     end = start + config.duration
-    while time.monotonic() < end and not sup.ended():
+    while time.monotonic() < end and not sup.ended() and not CTRL_C.is_set():
         time.sleep(0.1)
         bar.update(time.monotonic() - start)
     bar.finish()
+    if CTRL_C.is_set():
+        raise KeyboardInterrupt
     sup.check(allowed)
 
 
@@ -298,6 +302,7 @@ def run(args: argparse.Namespace) -> int:
     if with_recorder:
         _set_aside(bag / "bag")
     sup = Supervisor(logs, env)
+    catch_ctrl_c()
     failure = ""
     wall = math.nan  # interrupted: no run time to report, exit status 130
     try:
@@ -317,10 +322,12 @@ def run(args: argparse.Namespace) -> int:
         _run_phase(sup, plan, config, args.timeout)
         wall = time.monotonic() - start
     except RigProcessError as exc:
-        failure = str(exc)
+        failure = "" if CTRL_C.is_set() else str(exc)  # else: nodes ended on the same Ctrl-C
     except KeyboardInterrupt:
-        print("lubrig rig: interrupted, stopping the nodes", file=sys.stderr)
+        CTRL_C.set()
     finally:
+        if CTRL_C.is_set():
+            print("lubrig rig: interrupted, stopping the nodes", file=sys.stderr)
         _stop(sup)
     return _finish(sup, plan, args, bag, wall, failure)
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import subprocess
 import time
+from collections.abc import Callable
 from typing import Any
 
 from ..app.contract import DEFAULT_NAMESPACE
@@ -88,11 +89,13 @@ def wait_complete(
     namespace: str = DEFAULT_NAMESPACE,
     progress: Progress | None = None,
     stall: list[str] | None = None,
+    interrupted: Callable[[], bool] = lambda: False,
 ) -> bool:
     """Sim: wait for <ns>/run_complete = true (latched) from the plant (rig time from /clock).
 
     Gives up early when the plant has reported its run stalled (timing status ERROR) for
-    STALL_GIVE_UP_S without a break; the plant's line is appended to `stall`.
+    STALL_GIVE_UP_S without a break; the plant's line is appended to `stall`; returns at once
+    when `interrupted()` (the launcher's Ctrl-C).
     """
     from std_msgs.msg import Bool
 
@@ -138,7 +141,7 @@ def wait_complete(
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     try:
-        while not done and time.monotonic() < deadline:
+        while not done and time.monotonic() < deadline and not interrupted():
             if any(p.poll() is not None for p in procs.values()):
                 break
             if stalled_since and time.monotonic() - stalled_since[0] >= STALL_GIVE_UP_S:

@@ -16,6 +16,7 @@ import contextlib
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +24,27 @@ from pathlib import Path
 
 from ..app.lifetime import die_with_parent
 from ..app.rig_plan import CLEAN_EXITS, READY_LINES
+
+#: Set by the launcher's SIGINT handler (catch_ctrl_c) before it raises KeyboardInterrupt.
+CTRL_C = threading.Event()
+
+
+def catch_ctrl_c() -> None:
+    """SIGINT sets CTRL_C, then raises KeyboardInterrupt (main thread only; else nothing changes).
+
+    The exception alone can be lost: raised while the main thread waits inside rclpy's executor,
+    it may be cleared there, and the launcher would go on and take the nodes, which had the same
+    Ctrl-C from the terminal and ended cleanly, for failed processes. The event stays set.
+    """
+
+    def handler(_signum: int, _frame: object) -> None:
+        CTRL_C.set()
+        raise KeyboardInterrupt
+
+    CTRL_C.clear()
+    with contextlib.suppress(ValueError):
+        signal.signal(signal.SIGINT, handler)
+
 
 #: s a node gets after SIGINT before SIGTERM.
 GRACE_S = 10.0

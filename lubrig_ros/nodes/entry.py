@@ -91,9 +91,12 @@ def _run(name: str) -> int:
 
     signal.signal(signal.SIGINT, interrupt)
     try:
-        return int(module.main() or 0)
+        status = int(module.main() or 0)
     except KeyboardInterrupt:  # a second Ctrl-C that came before the node ignored SIGINT: stopped
         return 0
+    if status and name in NODE_SUMMARIES:  # in the node's log: the status came from its main
+        print(f"{name}: main() ended with exit status {status}", file=sys.stderr, flush=True)
+    return status
 
 
 def belt_drive() -> int:
