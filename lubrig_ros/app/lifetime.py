@@ -12,7 +12,6 @@ as long as its process (the main thread, the fork server's loop).
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import os
 import signal
 
@@ -27,7 +26,9 @@ def die_with_parent(sig: int = signal.SIGKILL) -> bool:
     """
     parent = os.getppid()
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+        # the process's own symbols (libc's among them): find_library would run ldconfig in a
+        # subprocess, which a preexec_fn (between fork and exec) must not do
+        libc = ctypes.CDLL(None, use_errno=True)
         if libc.prctl(PR_SET_PDEATHSIG, int(sig), 0, 0, 0) != 0:
             return False
     except (OSError, AttributeError):

@@ -36,24 +36,9 @@ from pathlib import Path
 from typing import IO, Any
 
 from lubrig_ros.app.discovery import discovery_environment
+from lubrig_ros.app.lifetime import die_with_parent
 
 PYTHON = sys.executable
-_PR_SET_PDEATHSIG = 1
-
-
-def _signal_on_parent_death(parent: int) -> None:
-    """In a child before exec: SIGTERM when the process that started it dies (even by SIGKILL).
-
-    The child's own SIGTERM handling then stops what it started (a launcher its nodes, a
-    recorder its workers), so a test run killed outright leaves no process behind. Linux only;
-    elsewhere nothing happens.
-    """
-    import ctypes
-
-    with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
-    if os.getppid() != parent:  # the parent died before the request took effect
-        os.kill(os.getpid(), signal.SIGTERM)
 
 
 def child_setup(then: Callable[[], None] | None = None) -> Callable[[], None] | None:
@@ -64,10 +49,9 @@ def child_setup(then: Callable[[], None] | None = None) -> Callable[[], None] | 
     """
     if threading.current_thread() is not threading.main_thread():
         return then
-    parent = os.getpid()
 
     def setup() -> None:
-        _signal_on_parent_death(parent)
+        die_with_parent(signal.SIGTERM)  # its own SIGTERM handling stops what it started
         if then is not None:
             then()
 
