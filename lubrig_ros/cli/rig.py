@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import faulthandler
 import functools
 import math
 import os
@@ -303,6 +304,8 @@ def run(args: argparse.Namespace) -> int:
         _set_aside(bag / "bag")
     sup = Supervisor(logs, env)
     catch_ctrl_c()
+    with contextlib.suppress(ValueError, RuntimeError):  # stacks on SIGUSR1, as the nodes do
+        faulthandler.register(signal.SIGUSR1, all_threads=True)
     failure = ""
     wall = math.nan  # interrupted: no run time to report, exit status 130
     try:

@@ -243,10 +243,29 @@ class NodeProcess:
         try:
             status = self.popen.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
+            state = self._signal_state()
             self.kill()
-            raise AssertionError(f"{self.argv} did not stop within {timeout} s:\n{self.log()}") from None
+            raise AssertionError(
+                f"{self.argv} did not stop within {timeout} s ({state}):\n{self.log()}"
+            ) from None
         self._kill_group()  # children left behind by the leader (e.g. recorder workers)
         return status
+
+    def _signal_state(self) -> str:
+        """How a process that ignores a stop handles signals: /proc's Sig* lines, then its stacks.
+
+        SIGUSR1 makes a process that registered faulthandler for it (the nodes, `lubrig rig`)
+        print every thread's Python stack to its stderr, which the log shows.
+        """
+        try:
+            lines = Path(f"/proc/{self.pid}/status").read_text().splitlines()
+        except OSError:
+            return "no /proc status"
+        state = "; ".join(line.replace("\t", " ") for line in lines if line.startswith(("Sig", "Shd")))
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self.pid, signal.SIGUSR1)
+            time.sleep(1.0)
+        return state
 
     def kill(self) -> None:
         """SIGKILL the whole process group (the process and its children) and reap the leader."""
