@@ -20,7 +20,8 @@ $(STAMP): requirements.txt setup.py test/support/pyproject.toml
 IFACE_SRC := lubrig_interfaces
 IFACE_BUILD := build/lubrig_interfaces
 IFACE_STAMP := $(VENV)/.lubrig_interfaces
-IFACE_FILES := $(IFACE_SRC)/CMakeLists.txt $(IFACE_SRC)/package.xml $(wildcard $(IFACE_SRC)/msg/*.msg)
+IFACE_FILES := $(IFACE_SRC)/CMakeLists.txt $(IFACE_SRC)/package.xml $(wildcard $(IFACE_SRC)/msg/*.msg) \
+	$(wildcard $(IFACE_SRC)/srv/*.srv)
 VENV_ABS = $(abspath $(VENV))
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 

@@ -41,6 +41,8 @@ MESSAGES = (
     "StabilityFlags",
     "FlowProgress",
 )
+#: The replay's services (lubrig_interfaces/srv): rosbag2's player has the same two.
+SERVICES = ("Seek", "SetRate")
 SHARE = Path(sys.prefix) / "share" / PACKAGE / "msg"
 N = 100  # samples in the test blocks
 
@@ -146,7 +148,13 @@ def test_every_message_is_generated_and_installed():
     index = Path(sys.prefix) / "share" / "ament_index" / "resource_index"
     assert (index / "packages" / PACKAGE).is_file()
     interfaces = (index / "rosidl_interfaces" / PACKAGE).read_text().split()
-    assert sorted(interfaces) == sorted(f"msg/{n}.{ext}" for n in MESSAGES for ext in ("idl", "msg"))
+    expected = [f"msg/{n}.{ext}" for n in MESSAGES for ext in ("idl", "msg")]
+    expected += [f"srv/{n}.{ext}" for n in SERVICES for ext in ("idl", "srv")]
+    assert sorted(interfaces) == sorted(expected)
+    import lubrig_interfaces.srv as srv
+
+    for name in SERVICES:
+        assert hasattr(srv, name), name
 
 
 @pytest.mark.parametrize("name", MESSAGES)

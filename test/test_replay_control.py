@@ -16,11 +16,13 @@ from typing import Any
 
 import numpy as np
 import pytest
+from rcl_interfaces.srv import GetParameters
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from lubrig_interfaces.msg import RigStateBlock
+from lubrig_interfaces.srv import Seek, SetRate
 from lubrig_ros.app.plant_output import BLOCK_FIELDS
 from lubrig_ros.bag import BagWriter, check_bag, read_arrays
 
@@ -99,11 +101,14 @@ def test_paused_replay_steps_seeks_and_resumes_as_told(procs, probe, tmp_path: P
     assert answer is None or answer.message == f"published {BLOCKS} at 0 s", answer
     play_next(probe, client)
     assert firsts(probe) == [0, 10]  # one block per step
-    # seek (a parameter): the next message is the first at or after 0.195 s, block 20 (0.2 s)
-    assert probe.set_parameter(NODE, "seek", 0.195).successful
+    # ~/seek (as rosbag2's player): the next message is the first at or after 0.195 s, block 20
+    sought = probe.call(Seek, f"/{NODE}/seek", Seek.Request(time=0.195), timeout=60, resend=5.0)
+    assert sought.success, sought.message
     answer = play_next(probe, client)
     assert answer is None or answer.message == f"published {BLOCKS} at 0.2 s", answer
-    refused = probe.set_parameter(NODE, "seek", 5.0)  # beyond the bag
+    refused = probe.call(Seek, f"/{NODE}/seek", Seek.Request(time=5.0), timeout=60, resend=5.0)
+    assert not refused.success and "seek" in refused.message, refused.message  # beyond the bag
+    refused = probe.set_parameter(NODE, "seek", 5.0)  # the same check as a parameter
     assert not refused.successful and "seek" in refused.reason, refused.reason
     refused = probe.set_parameter(NODE, "rate", 0.0)
     assert not refused.successful
@@ -130,7 +135,12 @@ def test_rate_parameter_changes_the_pacing_of_a_playing_replay(procs, probe, tmp
     assert probe.wait_for_count("/lubrig/displacement", 1, 60), replay.log()
     assert trigger(probe, "pause").success
     assert trigger(probe, "is_paused").success
-    assert probe.set_parameter(NODE, "rate", 1000.0).successful
+    rated = probe.call(SetRate, f"/{NODE}/set_rate", SetRate.Request(rate=1000.0), timeout=60, resend=5.0)
+    assert rated.success, rated.message
+    # the service set the parameter
+    request = GetParameters.Request(names=["rate"])
+    got = probe.call(GetParameters, f"/{NODE}/get_parameters", request, timeout=60, resend=5.0)
+    assert got.values[0].double_value == 1000.0, got
     # toggle_paused resumes (not idempotent: sent again only if neither answer nor message came)
     client = probe.node.create_client(Trigger, f"/{NODE}/toggle_paused")
     assert client.wait_for_service(timeout_sec=60)

@@ -6,11 +6,13 @@ main thread plays. Both change the session under one lock; a control wakes the p
 
 Services (std_srvs/srv/Trigger, relative to the node: /lubrig_replay/pause, ...): ``~/pause``,
 ``~/resume``, ``~/toggle_paused``, ``~/is_paused`` (success: paused) and ``~/play_next`` (paused:
-publish the next message at once; the answer names it). Parameters (set with `ros2 param set`,
-i.e. the node's ``~/set_parameters`` service): ``rate`` (time scale, in (0, MAX_RATE]) and
-``seek`` (bag time in s from the bag's first log time: the next message is the first at or after
-it). Both take an integer too (`ros2 param set ... rate 2`); a value outside its range, or not a
-number, is refused with the reason, and the player is unchanged.
+publish the next message at once; the answer names it); ``~/seek`` (lubrig_interfaces/srv/Seek)
+and ``~/set_rate`` (lubrig_interfaces/srv/SetRate), as rosbag2's player has them. Seek and rate
+are also the parameters ``seek`` (bag time in s from the bag's first log time: the next message
+is the first at or after it) and ``rate`` (time scale, in (0, MAX_RATE]); the two services set
+those parameters, so `ros2 param get` shows the current rate and the parameters' checks are the
+one place a value is judged. Both take an integer too (`ros2 param set ... rate 2`); a value
+outside its range, or not a number, is refused with the reason, and the player is unchanged.
 """
 
 from __future__ import annotations
@@ -23,9 +25,11 @@ from typing import Any
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
+from lubrig_interfaces.srv import Seek, SetRate
 from lubrig_ros.app.replay_session import MAX_RATE, Done, Entry, Publish, ReplaySession
 from lubrig_ros.core.errors import InputError
 
@@ -83,6 +87,15 @@ class Player:
         }
         for name, handler in services.items():
             node.create_service(Trigger, f"~/{name}", self._trigger(handler))
+        node.create_service(Seek, "~/seek", lambda req, res: self._set("seek", req.time, res))
+        node.create_service(SetRate, "~/set_rate", lambda req, res: self._set("rate", req.rate, res))
+
+    def _set(self, name: str, value: float, response: Any) -> Any:
+        """A Seek or SetRate request: the parameter of that name set (its check decides)."""
+        result = self.node.set_parameters([Parameter(name, value=float(value))])[0]
+        response.success = bool(result.successful)
+        response.message = f"{name} {value:g}" if result.successful else str(result.reason)
+        return response
 
     # ---- controls (executor thread) -----------------------------------------------------
     def _trigger(self, handler: Callable[[], tuple[bool, str]]) -> Callable[[Any, Any], Any]:
