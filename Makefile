@@ -3,7 +3,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: setup ament-index run test test-fast lint typecheck bench
+.PHONY: setup ament-index run test test-fast lint typecheck bench bench-setup
 
 $(STAMP): requirements.txt setup.py test/support/pyproject.toml
 	python3 -m venv $(VENV)
@@ -82,8 +82,19 @@ lint: setup
 typecheck: setup
 	$(VENV)/bin/mypy
 
+# Benchmark-only packages (requirements-bench.txt: numbalsoda, built from source with gcc/g++ in
+# about a minute; CMAKE_POLICY_VERSION_MINIMUM lets CMake 4 configure its CMakeLists, see there).
+BENCH_STAMP := $(VENV)/.bench-installed
+
+$(BENCH_STAMP): $(STAMP) requirements-bench.txt
+	CMAKE_POLICY_VERSION_MINIMUM=3.5 $(PY) -m pip install -q -r requirements-bench.txt
+	$(PY) -c "import numbalsoda"
+	touch $@
+
+bench-setup: setup $(BENCH_STAMP)
+
 # Benchmarks print their figures (docs/benchmarks.md records them with these commands).
-bench: setup
+bench: setup bench-setup
 	$(PY) bench/bench_integrator.py
 	$(PY) bench/bench_online_wavelet.py
 	$(PY) bench/bench_recorder.py --seconds 10 --rate 1000
