@@ -1,23 +1,193 @@
-"""Integrator speed: lubrig's Radau IIA kernel vs scipy solve_ivp(LSODA) on the same law in plain numpy.
+"""Integrator cost at equal accuracy: lubrig's Radau IIA vs numbalsoda's LSODA vs scipy's LSODA.
 
-Both integrate the same equation with the band velocity linear between 1 kHz samples; accuracy of
-each is measured against a tight reference (scipy DOP853 at rtol 1e-13 for the non-stiff paper
-convention, scipy Radau with analytic Jacobian at rtol 1e-11 for the stiff physical one).
-Run: .venv/bin/python bench/bench_integrator.py [--duration 10] [--case 1]
+Issue 25's comparison. For each case, an independent tight reference (lubrig_testkit.reference_rig:
+the model document's equations written again, scipy LSODA at rtol 1e-12 with steps of at most one
+sample period), then a tolerance sweep of three solvers of the same equation with the band linear
+between the 1 kHz samples:
+
+* lubrig: core.run.simulate (the RigIntegrator, compiled Radau IIA);
+* numbalsoda: the C++ LSODA of numbalsoda (a benchmark dependency, `make bench-setup`) on a
+  right-hand side compiled with numba's cfunc that calls the project's own compiled law kernel
+  (core.junction.mu_and_slope), state scaled so that its one scalar atol equals lubrig's
+  per-component atol (rtol x 1e-2 N/k and that x omega0);
+* scipy LSODA: solve_ivp(method="LSODA") on the law written in plain numpy (no Jacobian, no step
+  bound), each run stopped after --scipy-budget s of CPU (a failure).
+
+Each run's error is the largest pointwise displacement difference from the reference relative to
+the reference's range; cost is CPU time (time.process_time, best of --repeat; scipy once). A
+solver that gives up ("too many steps", numbalsoda's `success` false, scipy's status -1) is
+recorded as failed with its message. At each error bound (--bounds) each solver's run at the
+loosest rtol from which every completed tighter run is within the bound is taken (a tolerance a
+user could choose; stick-slip errors are not monotonic in rtol), and lubrig's cost is given as a
+ratio of numbalsoda's and scipy's (below 1: lubrig cheaper).
+
+Run: .venv/bin/python bench/bench_integrator.py [--cases sliding const case1] [--repeat 3]
+     [--bounds 1e-4 1e-5 1e-6] [--scipy-budget 5]
+     .venv/bin/python bench/bench_integrator.py --case 1 --convention paper --duration 10
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
+import os
+import sys
+import tempfile
 import time
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
+from lubrig_testkit.reference_rig import reference_displacement
 from scipy.integrate import solve_ivp
 
-from lubrig_ros.core.friction import friction_slope
 from lubrig_ros.core.params import FrictionParameters, RigParameters
-from lubrig_ros.core.presets import load_case
-from lubrig_ros.core.run import integrator_for, simulate
+from lubrig_ros.core.presets import RunConfig, config_dir, load_case, load_config
+from lubrig_ros.core.run import band_samples, integrator_for, simulate
+from lubrig_ros.core.trajectory import concatenate
+
+#: The issue's cases: name → (what it is, how to load it).
+CASES: dict[str, tuple[str, Callable[[], RunConfig]]] = {
+    "sliding": (
+        "case 4, physical: slides throughout (20 s)",
+        lambda: load_case(4).with_overrides(convention="physical", duration=20.0),
+    ),
+    "const": (
+        "constant band 2e-8 m/s, physical: stick-slip (config/stickslip.yaml, 60 s)",
+        lambda: load_config(config_dir() / "stickslip.yaml").with_overrides(convention="physical"),
+    ),
+    "case1": (
+        "case 1, physical: stick-slip on a band cycle (20 s)",
+        lambda: load_case(1).with_overrides(convention="physical", duration=20.0),
+    ),
+}
+#: Tolerance sweeps (half decades for the compiled solvers, decades for scipy's Python LSODA).
+LUBRIG_RTOLS = tuple(10.0 ** (-e / 2) for e in range(12, 25))  # 1e-6 … 1e-12
+NUMBALSODA_RTOLS = tuple(10.0 ** (-e / 2) for e in range(12, 27))  # 1e-6 … 1e-13
+SCIPY_RTOLS = tuple(10.0**-e for e in range(6, 13))  # 1e-6 … 1e-12
+
+
+@dataclass
+class Result:
+    solver: str
+    rtol: float
+    cpu: float  # s, best of the repeats (nan when failed)
+    error: float  # max |x − x_ref| / range (nan when failed)
+    failure: str = ""
+    steps: int = 0  # lubrig: accepted Radau steps (0: not known)
+
+
+# ---------------------------------------------------------------------------------------- solvers
+
+
+def cpu_best(run: Callable[[], tuple[np.ndarray, int]], repeat: int) -> tuple[np.ndarray, int, float]:
+    """The last result and the best CPU time of `repeat` calls."""
+    best = np.inf
+    x, steps = np.empty(0), 0
+    for _ in range(repeat):
+        started = time.process_time()
+        x, steps = run()
+        best = min(best, time.process_time() - started)
+    return x, steps, best
+
+
+def lubrig_run(config: RunConfig, rtol: float) -> tuple[np.ndarray, int]:
+    """core.run.simulate's path (integrator_for, advance over the band samples); x and substeps."""
+    config = config.with_overrides(rtol=rtol)
+    integrator = integrator_for(config)
+    first = integrator.current()
+    run = concatenate([first, integrator.advance(band_samples(config, 0, config.samples))])
+    return run.displacement, integrator.substeps
+
+
+#: Layout of the numbalsoda right-hand side's data array (after it: the law's parameters, then
+#: the band samples).
+_HEAD = ("mass", "damping", "stiffness", "gamma", "normal_force", "omega0", "length", "sample_rate")
+_N_HEAD = len(_HEAD) + 2  # + law parameter count, band sample count
+
+
+@functools.cache
+def _numbalsoda_rhs() -> tuple[int, Callable[..., tuple[float, float]]]:
+    """The cfunc right-hand side (its address) and the law kernel it calls, compiled once."""
+    import numba as nb
+    from numbalsoda import lsoda_sig
+
+    from lubrig_ros.core.junction import mu_and_slope
+
+    law = mu_and_slope.dispatcher  # the project's compiled kernel, callable from a cfunc
+
+    @nb.cfunc(lsoda_sig)
+    def rhs(t, u, du, data):  # type: ignore[no-untyped-def]
+        head = nb.carray(data, _N_HEAD)
+        n_law = int(head[8])
+        n_band = int(head[9])
+        d = nb.carray(data, _N_HEAD + n_law + n_band)
+        m, c, k, gamma, normal, omega0, length, rate = (
+            d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7],
+        )  # fmt: skip
+        # band linear between samples (as np.interp over k / rate)
+        s = t * rate
+        i = min(max(int(s), 0), n_band - 2)
+        band = d[_N_HEAD + n_law :]
+        vb = band[i] + (s - i) * (band[i + 1] - band[i])
+        x = u[0] * length
+        xdot = u[1] * length * omega0
+        mu, _ = law(vb - gamma * xdot, d[_N_HEAD : _N_HEAD + n_law])
+        du[0] = omega0 * u[1]
+        du[1] = (normal * mu - c * xdot - k * x) / m / (length * omega0)
+
+    return rhs.address, law
+
+
+def numbalsoda_data(rig: RigParameters, law_params: np.ndarray, band: np.ndarray, rate: float) -> np.ndarray:
+    length = 1e-2 * rig.friction.normal_force / rig.stiffness  # lubrig's atol is rtol × this
+    head = [
+        rig.mass, rig.damping, rig.stiffness, rig.velocity_factor, rig.friction.normal_force,
+        rig.angular_frequency, length, rate, float(law_params.size), float(band.size),
+    ]  # fmt: skip
+    return np.ascontiguousarray(np.concatenate([head, law_params, band]), dtype=np.float64)
+
+
+class CapturedStderr:
+    """fd 2 to a temporary file while open (numbalsoda's C++ LSODA writes its reasons there)."""
+
+    def __enter__(self) -> CapturedStderr:
+        sys.stderr.flush()
+        self._file = tempfile.TemporaryFile(mode="w+b")
+        self._saved = os.dup(2)
+        os.dup2(self._file.fileno(), 2)
+        self.text = ""
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        os.dup2(self._saved, 2)
+        os.close(self._saved)
+        self._file.seek(0)
+        self.text = self._file.read().decode(errors="replace")
+        self._file.close()
+
+
+class Numbalsoda:
+    """numbalsoda's lsoda on the cfunc right-hand side; x in m from the scaled state."""
+
+    def __init__(self, config: RunConfig, time_s: np.ndarray, band: np.ndarray, x0: float) -> None:
+        from numbalsoda import lsoda
+
+        from lubrig_ros.core.friction_laws import law_for
+
+        self._lsoda = lsoda
+        self._address, _ = _numbalsoda_rhs()
+        rig = config.rig
+        params = law_for(rig.friction).pack(rig.friction)
+        self.data = numbalsoda_data(rig, params, band, config.sample_rate)
+        self._length = 1e-2 * rig.friction.normal_force / rig.stiffness
+        self._u0 = np.array([x0 / self._length, 0.0])
+        self._time = np.ascontiguousarray(time_s, dtype=np.float64)
+
+    def run(self, rtol: float) -> tuple[np.ndarray, bool]:
+        usol, success = self._lsoda(self._address, self._u0, self._time, data=self.data, rtol=rtol, atol=rtol)
+        return usol[:, 0] * self._length, bool(success)
 
 
 def numpy_friction(v: float, p: FrictionParameters) -> float:
@@ -40,93 +210,203 @@ def numpy_friction(v: float, p: FrictionParameters) -> float:
     return float(sign * p.contact_area / p.normal_force * sigma)
 
 
-def scipy_run(
-    rig: RigParameters, t_s: np.ndarray, v_s: np.ndarray, x0: float, method: str, rtol: float, jac: bool
+class OverBudgetError(Exception):
+    """A scipy run used more CPU time than it is allowed."""
+
+
+def scipy_lsoda(  # type: ignore[no-untyped-def]
+    rig: RigParameters, t_s: np.ndarray, v_s: np.ndarray, x0: float, rtol: float, budget: float
 ):
+    """scipy solve_ivp(LSODA) on the numpy law, lubrig's atol; (x, success, message).
+
+    Stopped after `budget` s of CPU time (reported as a failure): without a step bound its step
+    control can crawl through stick phases for many minutes (docs/integrator.md, Accuracy).
+    """
     m, c, k, gamma = rig.mass, rig.damping, rig.stiffness, rig.velocity_factor
     normal = rig.friction.normal_force
     p = rig.friction
+    deadline = time.process_time() + budget
 
-    def rhs(t, y):
+    def rhs(t, y):  # type: ignore[no-untyped-def]
+        if time.process_time() > deadline:
+            raise OverBudgetError(f"stopped after {budget:g} s of CPU at t = {t:.6g} s")
         vb = np.interp(t, t_s, v_s)
         return [y[1], (normal * numpy_friction(vb - gamma * y[1], p) - c * y[1] - k * y[0]) / m]
 
-    def jacobian(t, y):
-        vb = np.interp(t, t_s, v_s)
-        slope = float(friction_slope(vb - gamma * y[1], p))
-        return [[0.0, 1.0], [-k / m, (-gamma * normal * slope - c) / m]]
-
     scale = 1e-2 * normal / k
     atol = [rtol * scale, rtol * scale * rig.angular_frequency]
-    options = {"jac": jacobian} if jac else {}
-    started = time.perf_counter()
-    sol = solve_ivp(
-        rhs, (t_s[0], t_s[-1]), [x0, 0.0], method=method, t_eval=t_s, rtol=rtol, atol=atol, **options
-    )
-    elapsed = time.perf_counter() - started
-    if not sol.success:
-        raise RuntimeError(sol.message)
-    return sol.y[0], elapsed, sol.nfev
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            sol = solve_ivp(
+                rhs, (t_s[0], t_s[-1]), [x0, 0.0], method="LSODA", t_eval=t_s, rtol=rtol, atol=atol
+            )
+    except OverBudgetError as exc:
+        return np.empty(0), False, str(exc)
+    message = str(sol.message)
+    if caught and not sol.success:
+        message += f" ({caught[0].message})"
+    return sol.y[0], bool(sol.success), message
+
+
+# ------------------------------------------------------------------------------------------ sweep
+
+
+def error_of(x: np.ndarray, reference: np.ndarray) -> float:
+    if x.shape != reference.shape or not np.all(np.isfinite(x)):
+        return float("nan")
+    return float(np.max(np.abs(x - reference)) / np.ptp(reference))
+
+
+def sweep_case(config: RunConfig, repeat: int, scipy_budget: float, with_numbalsoda: bool) -> list[Result]:
+    first = simulate(config)  # also compiles / loads lubrig's kernel
+    t_s, v_s, x0 = first.time, first.band_velocity, float(first.displacement[0])
+    started = time.process_time()
+    reference = reference_displacement(t_s, v_s, x0, config.rig.velocity_factor)
+    elapsed = time.process_time() - started
+    print(f"  reference (testkit: scipy LSODA rtol 1e-12, steps <= 1 sample): {elapsed:.1f} s CPU")
+    results = []
+    for rtol in LUBRIG_RTOLS:
+        x, steps, cpu = cpu_best(lambda r=rtol: lubrig_run(config, r), repeat)
+        results.append(Result("lubrig", rtol, cpu, error_of(x, reference), steps=steps))
+    if with_numbalsoda:
+        results += numbalsoda_sweep(config, t_s, v_s, x0, reference, repeat)
+    if scipy_budget > 0:
+        for rtol in SCIPY_RTOLS:
+            started = time.process_time()
+            x, ok, message = scipy_lsoda(config.rig, t_s, v_s, x0, rtol, scipy_budget)
+            cpu = time.process_time() - started
+            results.append(
+                Result("scipy LSODA", rtol, cpu, error_of(x, reference))
+                if ok
+                else Result("scipy LSODA", rtol, cpu, float("nan"), message)
+            )
+    return results
+
+
+def numbalsoda_sweep(
+    config: RunConfig, t_s: np.ndarray, v_s: np.ndarray, x0: float, reference: np.ndarray, repeat: int
+) -> list[Result]:
+    solver = Numbalsoda(config, t_s, v_s, x0)
+    solver.run(1e-6)  # compiles numbalsoda's lsoda wrapper for these types
+    results = []
+    for rtol in NUMBALSODA_RTOLS:
+        best, x, ok, reason = np.inf, np.empty(0), True, ""
+        for _ in range(repeat):
+            with CapturedStderr() as err:
+                started = time.process_time()
+                x, ok = solver.run(rtol)
+                best = min(best, time.process_time() - started)
+            if not ok:
+                lines = [line.strip() for line in err.text.splitlines() if line.strip()]
+                reason = lines[0] if lines else "success false, no message"
+                break
+        if ok:
+            results.append(Result("numbalsoda", rtol, best, error_of(x, reference)))
+        else:
+            results.append(Result("numbalsoda", rtol, best, float("nan"), reason))
+    return results
+
+
+def matched(results: list[Result], solver: str, bound: float) -> Result | None:
+    """The loosest rtol whose run and every completed tighter run are within the bound.
+
+    (Not simply the cheapest run within it: stick-slip errors are not monotonic in rtol, and a
+    lucky loose run is no tolerance a user could choose.) A failed run breaks no chain: it is
+    counted apart.
+    """
+    runs = sorted((r for r in results if r.solver == solver and not r.failure), key=lambda r: r.rtol)
+    chosen = None
+    for r in runs:  # tightest first
+        if not r.error <= bound:
+            break
+        chosen = r
+    return chosen
+
+
+def print_results(results: list[Result]) -> None:
+    print(f"  {'solver':12s} {'rtol':>8s} {'CPU ms':>9s}  {'error/range':11s} steps (lubrig)")
+    for r in results:
+        head = f"  {r.solver:12s} {r.rtol:8.1e} {r.cpu * 1e3:9.2f}"
+        if r.failure:
+            print(f"{head}  FAILED: {r.failure}")
+        else:
+            print(f"{head}  {r.error:<11.2g} {r.steps or ''}")
+
+
+def summarize(name: str, results: list[Result], bounds: list[float]) -> list[str]:
+    rows = []
+    solvers = list(dict.fromkeys(r.solver for r in results))
+    failed = {s: sum(1 for r in results if r.solver == s and r.failure) for s in solvers}
+    runs = {s: sum(1 for r in results if r.solver == s) for s in solvers}
+    for bound in bounds:
+        best = {s: matched(results, s, bound) for s in solvers}
+        cells = []
+        for s in solvers:
+            b = best[s]
+            cells.append(f"{s} {b.cpu * 1e3:.1f} ms (rtol {b.rtol:.1e})" if b else f"{s} none within")
+        ratios = []
+        ours = best.get("lubrig")
+        for s in solvers:
+            if s != "lubrig" and ours and best[s]:
+                ratios.append(f"lubrig/{s} = {ours.cpu / best[s].cpu:.2f}")  # type: ignore[union-attr]
+        tail = "  ->  " + ", ".join(ratios) if ratios else ""
+        rows.append(f"{name:8s} error <= {bound:.0e}: " + "; ".join(cells) + tail)
+    rows.append(f"{name:8s} failures: " + ", ".join(f"{s} {failed[s]} of {runs[s]}" for s in solvers))
+    return rows
+
+
+def load_average() -> str:
+    with open("/proc/loadavg") as f:
+        return f.read().strip()
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--case", type=int, default=1)
-    parser.add_argument("--duration", type=float, default=10.0)
-    parser.add_argument("--convention", choices=("paper", "physical"), default="paper")
-    parser.add_argument("--lsoda-rtol", type=float, default=1e-8)
-    parser.add_argument("--rtol", type=float, default=1e-8, help="lubrig integrator tolerance")
+    parser.add_argument("--cases", nargs="+", choices=sorted(CASES), default=list(CASES))
+    parser.add_argument("--case", type=int, help="instead of --cases: this study case ...")
+    parser.add_argument("--convention", default="physical", help="... in this convention (with --case)")
+    parser.add_argument("--duration", type=float, help="rig time, s (default: each case's)")
+    parser.add_argument("--repeat", type=int, default=3, help="CPU time: best of this many runs")
+    parser.add_argument("--bounds", type=float, nargs="+", default=[1e-4, 1e-5, 1e-6])
+    parser.add_argument(
+        "--scipy-budget", type=float, default=5.0, help="CPU s allowed per scipy run (0: skip scipy)"
+    )
     args = parser.parse_args()
-    config = load_case(args.case).with_overrides(
-        duration=args.duration, convention=args.convention, rtol=args.rtol
-    )
-    integ = integrator_for(config)
-    x0 = integ.equilibrium_displacement * (1 + config.initial_perturbation)
-    t_s = np.arange(config.samples + 1) / config.sample_rate
-    v_s = config.band(t_s)
 
-    simulate(config.with_overrides(duration=0.01))  # compile / load the numba cache
-    repeats = 5
-    started = time.perf_counter()
-    for _ in range(repeats):
-        ours = simulate(config)
-    ours_time = (time.perf_counter() - started) / repeats
+    try:
+        import numbalsoda  # noqa: F401
 
-    stiff = args.convention == "physical"
-    x_ref, ref_time, _ = scipy_run(
-        config.rig, t_s, v_s, x0, "Radau" if stiff else "DOP853", 1e-11 if stiff else 1e-13, jac=stiff
-    )
-    span = np.ptp(x_ref)
-    err_ours = np.max(np.abs(ours.displacement - x_ref)) / span
-    print(f"case {args.case}, {args.convention} convention, {args.duration:g} s of rig time at 1 kHz output")
-    print(f"  reference ({'Radau rtol 1e-11' if stiff else 'DOP853 rtol 1e-13'}): {ref_time:.2f} s")
-    ours_label = f"lubrig Radau IIA (numba, rtol {config.rtol:g})"
-    print(f"  {ours_label:42s} {ours_time * 1e3:8.2f} ms   max error / ptp(x) = {err_ours:.2e}")
-    # LSODA at --lsoda-rtol, then tightened until it is as accurate as lubrig
-    matched = None
-    for n, rtol in enumerate((args.lsoda_rtol, 1e-9, 1e-10, 1e-11, 1e-12)):
-        x_lsoda, lsoda_time, nfev = scipy_run(config.rig, t_s, v_s, x0, "LSODA", rtol, jac=False)
-        err_lsoda = np.max(np.abs(x_lsoda - x_ref)) / span
-        label = f"scipy LSODA (numpy law, rtol {rtol:g})"
-        print(
-            f"  {label:42s} {lsoda_time * 1e3:8.2f} ms   max error / ptp(x) = {err_lsoda:.2e}"
-            f"  ({nfev} rhs)  cost ratio lubrig/LSODA = 1/{lsoda_time / ours_time:.1f}"
-        )
-        if err_lsoda <= err_ours:
-            matched = (n, rtol, lsoda_time)
-            break
-    if matched is None:
-        print("  LSODA did not reach lubrig's accuracy at rtol >= 1e-12")
-    elif matched[0] == 0:
-        print(
-            f"  lubrig is LESS accurate than LSODA at rtol {matched[1]:g}: no equal-accuracy ratio;"
-            " rerun with a tighter --rtol for lubrig"
-        )
+        with_numbalsoda = True
+    except ImportError:
+        print("numbalsoda is not installed (make bench-setup): compared with scipy LSODA only")
+        with_numbalsoda = False
+    if args.case is not None:
+        chosen = {
+            f"case{args.case}": (
+                f"case {args.case}, {args.convention}",
+                lambda: load_case(args.case).with_overrides(convention=args.convention, duration=20.0),
+            )
+        }
     else:
-        print(
-            f"  at equal accuracy (LSODA rtol {matched[1]:g}): lubrig costs 1/{matched[2] / ours_time:.1f}"
-            " of LSODA (goal: at most 1/20)"
-        )
+        chosen = {name: CASES[name] for name in args.cases}
+    print(f"load average before: {load_average()}")
+    summary = []
+    for name, (label, load) in chosen.items():
+        config = load()
+        if args.duration:
+            config = config.with_overrides(duration=args.duration)
+        print(f"{name}: {label}; {config.duration:g} s of rig time at {config.sample_rate:g} Hz")
+        results = sweep_case(config, args.repeat, args.scipy_budget, with_numbalsoda)
+        print_results(results)
+        summary += summarize(name, results, args.bounds)
+    print(
+        "at equal accuracy (per bound, the loosest rtol from which every completed run is within it;"
+        f" CPU, best of {args.repeat} for the compiled solvers):"
+    )
+    for row in summary:
+        print("  " + row)
+    print(f"load average after: {load_average()}")
 
 
 if __name__ == "__main__":
