@@ -383,8 +383,8 @@ def main() -> None:
         with_numbalsoda = False
     if args.case is not None:
         chosen = {
-            f"case{args.case}": (
-                f"case {args.case}, {args.convention}",
+            f"case{args.case}-{args.convention}": (
+                f"case {args.case}, {args.convention} (20 s)",
                 lambda: load_case(args.case).with_overrides(convention=args.convention, duration=20.0),
             )
         }
