@@ -331,7 +331,7 @@ def print_results(results: list[Result]) -> None:
         if r.failure:
             print(f"{head}  FAILED: {r.failure}")
         else:
-            print(f"{head}  {r.error:<11.2g} {r.steps or ''}")
+            print(f"{head}  {r.error:<11.2g} {r.steps or ''}".rstrip())
 
 
 def summarize(name: str, results: list[Result], bounds: list[float]) -> list[str]:
