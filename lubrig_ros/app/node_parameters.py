@@ -71,8 +71,9 @@ REALTIME_PRIORITY = _p(
     "realtime_priority",
     "integer",
     DEFAULT_REALTIME_PRIORITY,
-    "realtime, rig_in_loop: SCHED_FIFO priority 1..99 of the plant's loop thread alone (where "
-    "the process may; otherwise a warning and normal scheduling), and a CPU wake-up latency "
+    "realtime, rig_in_loop: SCHED_FIFO priority 1..99 of the plant's loop thread, and one below "
+    "it for the node's executor thread, whose callbacks hold the GIL the loop needs (where the "
+    "process may; otherwise a warning and normal scheduling), and a CPU wake-up latency "
     "request of 0 (/dev/cpu_dma_latency, where writable); 0 keeps normal scheduling",
     low=0,
     high=99,

@@ -248,17 +248,17 @@ def diagnostic_status(status: Status, node: Node) -> DiagnosticStatus:
 def enter_realtime(priority: int, node: Node) -> bool:
     """Put the calling thread (a real-time loop) under SCHED_FIFO `priority`; True if it took.
 
-    Only that thread: the node's executor thread and every other process keep normal scheduling,
-    so a busy node cannot starve the machine. Without the privilege (CAP_SYS_NICE or an rtprio
-    limit) it says so and goes on with normal scheduling. 0: normal scheduling, nothing said.
+    Only that thread (and, through `serve_realtime`, the executor thread one priority below):
+    every other process keeps normal scheduling, so a busy node cannot starve the machine.
+    Without the privilege (CAP_SYS_NICE or an rtprio limit) it says so and goes on with normal
+    scheduling. 0: normal scheduling, nothing said.
     """
     if priority <= 0:
         return False
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (PermissionError, OSError, AttributeError) as exc:
+    problem = _fifo(priority)
+    if problem:
         node.get_logger().warning(
-            f"realtime_priority={priority}: SCHED_FIFO not available ({exc}); the loop thread runs "
+            f"realtime_priority={priority}: SCHED_FIFO not available ({problem}); the loop thread runs "
             "with normal scheduling (grant CAP_SYS_NICE or an rtprio limit, or set realtime_priority:=0)"
         )
         return False
@@ -273,6 +273,28 @@ def enter_realtime(priority: int, node: Node) -> bool:
     )
     gc.freeze()  # objects made so far are never scanned again: shorter collector pauses
     return True
+
+
+def serve_realtime(priority: int) -> bool:
+    """Put the calling thread (the node's executor) under SCHED_FIFO one below a loop's `priority`.
+
+    The executor thread's callbacks hold the GIL (and the session lock) that the loop thread
+    needs on every tick. Under normal scheduling any other process could preempt the executor
+    while it holds them, and the loop, though under SCHED_FIFO, would wait until it runs again
+    (a priority inversion: at 1 kHz, late samples a few ms after each band block). One priority
+    below the loop, it still yields the CPU to it. Silent: `enter_realtime` on the loop thread
+    says whether SCHED_FIFO is available. Returns True if it took; 0: nothing done.
+    """
+    return priority > 0 and not _fifo(max(1, priority - 1))
+
+
+def _fifo(priority: int) -> str:
+    """SCHED_FIFO `priority` for the calling thread; why not ("" when it took)."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (PermissionError, OSError, AttributeError) as exc:
+        return str(exc)
+    return ""
 
 
 _LATENCY_REQUEST: list[int] = []  # the open /dev/cpu_dma_latency descriptor (held for the process)

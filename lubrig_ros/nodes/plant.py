@@ -193,6 +193,7 @@ class Plant(Node):
         config = self.session.config
         if self.wall_clock:
             sys.setswitchinterval(2e-4)  # let the loop thread take the GIL promptly
+            common.serve_realtime(int(values["realtime_priority"]))  # this (the executor) thread
             self._thread = threading.Thread(target=self._realtime_loop, daemon=True)
             self._thread.start()
             runs = (
