@@ -166,7 +166,7 @@ class Analysis(Node):
                 MultiArrayDimension(label="frequency", size=rows, stride=rows * cols),
                 MultiArrayDimension(label="time", size=cols, stride=cols),
             ]
-            msg.data = out.power.ravel().tolist()
+            msg.data = common.doubles(out.power.ravel())  # a list would be checked item by item
             p["wavelet_power"].publish(msg)
         now = self._stamp(out)
         if out.power is not None and out.frequencies is not None:
