@@ -217,6 +217,8 @@ def _invocations(f: dict[str, Path], out: Path) -> list[tuple[list[str], str]]:
         ([*rig, "--view", "0"], "1..65535"),
         ([*rig, "--view", "-1"], "-1"),
         ([*rig, "--view", "http"], "http"),
+        ([*rig, "--view", "--view-allow", "root"], "'root'"),
+        ([*rig, "--view-allow", "services"], "--view-allow services applies with --view only"),
         (["rig", "--duration", "1"], "--run-dir"),
     ]
     bag = str(f["bag"])

@@ -294,7 +294,8 @@ def _free_port() -> int:
 
 
 def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path, deadline):
-    """`lubrig rig --view PORT`: the launcher starts the view with the nodes; the client gets states.
+    """`lubrig rig --view PORT --view-allow services`: the launcher starts the view with the nodes
+    (services opened); the client gets states.
 
     The run is long (900 s) so that slow start-ups under load cannot end it first; the test stops it
     with Ctrl-C once the client has its messages (and the procs fixture at its end otherwise).
@@ -317,6 +318,8 @@ def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path, deadline):
         "--no-report",
         "--view",
         str(port),
+        "--view-allow",
+        "services",
     )
     view_log = tmp_path / "run" / "logs" / "view.log"
     logs = lambda: f"{rig.log()}\n--- view.log:\n{view_log.read_text() if view_log.exists() else ''}"  # noqa: E731
@@ -328,6 +331,7 @@ def test_lubrig_rig_view_serves_a_realtime_run(procs, tmp_path, deadline):
     assert len(states) >= 20
     assert all(math.isfinite(v) for s in states for v in _numbers(s))
     _assert_shown_samples(states, 50.0)  # the view's default for state
+    assert "view: clients may act on the rig: services (" in view_log.read_text(), logs()
     # Ctrl-C: the launcher stops the nodes and the view (its own escalation is bounded), and exits
     # 130 (interrupted, as a shell says)
     assert rig.stop(signal.SIGINT, 60) == 130, logs()

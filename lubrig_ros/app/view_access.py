@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 from lubrig_ros.core.errors import InputError
 
@@ -49,8 +49,13 @@ class Access:
     publish: bool = False
 
     def opened(self) -> list[str]:
-        """Names of the opened ways, for the log ("services", "parameters", "publish")."""
-        return [name for name in ("services", "parameters", "publish") if getattr(self, name)]
+        """Names of the opened ways, for the log (in WAYS order)."""
+        return [name for name in WAYS if getattr(self, name)]
+
+
+#: The ways back a command line can open, each `--allow-<way>` of `lubrig view` (and
+#: `--view-allow <way>` of `lubrig rig`): Access's fields.
+WAYS: tuple[str, ...] = tuple(f.name for f in fields(Access))
 
 
 def rig_services(namespace: str) -> tuple[Service, ...]:

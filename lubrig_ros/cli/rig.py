@@ -56,6 +56,7 @@ from ..app.discovery import discovery_environment
 from ..app.rig_plan import CLEAN_EXITS, READY_LINES, ParameterValue, RigPlan, rig_plan
 from ..app.rundir import prepare_output_dir
 from ..app.selection import RunSelection
+from ..app.view_access import WAYS
 from ..core.params import CONVENTIONS, ParameterError
 from ..core.presets import RunConfig, config_dir
 from ..nodes.view import DEFAULT_PORT, HIGHEST_PORT, tcp_port
@@ -189,7 +190,9 @@ def _start(sup: Supervisor, plan: RigPlan, args: argparse.Namespace, bag: Path) 
         if not sim:  # wall clock: nothing paces the nodes on the recorder, so it comes first
             sup.wait_ready("recorder")
     if args.view is not None:  # live view for Foxglove (lubrig view), up before the nodes publish
-        sup.start("view", [_executable("view"), "--namespace", plan.namespace, "--port", str(args.view)])
+        allow = [f"--allow-{way}" for way in dict.fromkeys(args.view_allow)]
+        view = [_executable("view"), "--namespace", plan.namespace, "--port", str(args.view)]
+        sup.start("view", [*view, *allow])
         sup.wait_ready("view")
         print(f"lubrig rig: live view on ws://127.0.0.1:{args.view} (Foxglove; log {sup.log('view')})")
     for node in plan.nodes:
@@ -274,6 +277,8 @@ def run(args: argparse.Namespace) -> int:
         discovery = discovery_environment(os.environ, args.network)  # this host only unless asked
     except ParameterError as exc:
         raise CommandError(str(exc)) from None
+    if args.view_allow and args.view is None:
+        raise CommandError(f"--view-allow {args.view_allow[0]} applies with --view only")
     mode = args.mode
     plant_extra = _plant_options(args, mode)
     env = discovery.env
@@ -466,5 +471,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="PORT",
         help=f"also serve the run to Foxglove on ws://127.0.0.1:PORT (default {DEFAULT_PORT}, "
         f"valid 1..{HIGHEST_PORT}; lubrig view)",
+    )
+    parser.add_argument(
+        "--view-allow",
+        action="append",
+        choices=WAYS,
+        default=[],
+        metavar="WAY",
+        help=f"with --view: let Foxglove clients act on the rig that way ({', '.join(WAYS)}; "
+        "repeatable): lubrig view's --allow-WAY, without authentication",
     )
     parser.set_defaults(func=run)
