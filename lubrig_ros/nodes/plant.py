@@ -66,7 +66,7 @@ from ..app.plant_session import (
     runtime_parameters,
 )
 from ..core.params import ParameterError
-from . import common
+from . import common, scheduling
 from .graph import NamespaceGuard, await_subscriber, band_source_status
 from .interfaces import create_publisher, create_service, create_subscription, report_callers
 
@@ -193,7 +193,7 @@ class Plant(Node):
         config = self.session.config
         if self.wall_clock:
             sys.setswitchinterval(2e-4)  # let the loop thread take the GIL promptly
-            common.serve_realtime(int(values["realtime_priority"]))  # this (the executor) thread
+            scheduling.serve_realtime(int(values["realtime_priority"]))  # this (the executor) thread
             self._thread = threading.Thread(target=self._realtime_loop, daemon=True)
             self._thread.start()
             runs = (
@@ -426,7 +426,7 @@ class Plant(Node):
 
     def _realtime_loop(self) -> None:
         priority = int(self.get_parameter("realtime_priority").value)
-        common.enter_realtime(priority, self)  # this thread only
+        scheduling.enter_realtime(priority, self)  # this thread only
         try:
             while not self._clear.wait(0.05):
                 if self._stop.is_set():
