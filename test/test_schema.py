@@ -233,3 +233,10 @@ def test_rig_parameters_check_the_models_own_bound_from_the_schema(name, value, 
     with pytest.raises(ParameterError, match=re.escape(message)):
         RigParameters(**{name: value})
     assert RigParameters(damping_ratio=0.0).damping_ratio == 0.0
+
+
+def test_the_default_rig_states_every_rig_parameter():
+    """config/rig.yaml, the built-in defaults, has a line for every RIG_FIELDS entry (its range: above)."""
+    paths = {tuple(path) for path, _ in _field_lines(CONFIG / "rig.yaml")}
+    for name, spec in schema.RIG_FIELDS.items():
+        assert (("rig", name) if spec.on_rig else ("rig", spec.held, name)) in paths, name
