@@ -10,7 +10,10 @@ Who applies them:
 * the nodes' parameter descriptors carry them (app/node_parameters.py derives the plant's and
   belt_drive's parameters from these tables, so ``ros2 param describe`` shows the same range);
 * ``lubrig --help`` shows them (cli/common.py), config/rig.yaml states them in its comments
-  (test/test_schema.py checks both against this module).
+  (test/test_schema.py checks both against this module);
+* a rig field's entry (RigField) also says where a run may set it: the run selection's
+  overrides (app/selection.py), its ``lubrig simulate`` option, the plant's ``rig.<name>``
+  parameter and ``lubrig fit --free`` derive from RIG_FIELDS.
 
 The parameter dataclasses themselves (RigParameters, FrictionParameters) only demand finite,
 positive values (a rig field: its `model_low`): the linear stability analysis and the tests
@@ -196,10 +199,11 @@ NORMAL_FORCE = RigField(
     fit=False,
 )
 
-#: The rig's parameters. A new one is an entry here and its field on core.params.RigParameters
-#: (docs/extending.md); normal_force is the friction law's field (its `ranges` hold it too), and
-#: velocity_coupling's option and node parameter are declared beside the convention's (a
-#: convention name is a value of it too; 0 on the node: the convention's γ).
+#: The rig's parameters. A new one is an entry here, its field on core.params.RigParameters and
+#: its line in config/rig.yaml (docs/extending.md); normal_force is the friction law's field
+#: (its `ranges` hold it too), and velocity_coupling's option and node parameter are declared
+#: beside the convention's (a convention name is a value of it too; 0 on the node: the
+#: convention's γ).
 RIG_FIELDS: dict[str, RigField] = {
     f.name: f
     for f in (
