@@ -179,3 +179,64 @@ def test_a_field_of_an_inactive_profile_kind_is_checked_too():
     assert params.values("sine")["frequency"] == 1.0  # nothing changed
     params.apply({"frequency": 2.0})
     assert params.values("sine")["frequency"] == 2.0 and params.kind == "constant"
+
+
+def test_every_rig_parameter_has_one_schema_entry():
+    """A RigParameters field (but the named convention and the friction law) is a RIG_FIELDS entry."""
+    from lubrig_ros.core.params import RigParameters
+
+    on_rig = {f.name for f in fields(RigParameters)} - {"convention", "friction"}
+    assert set(schema.rig_fields(on_rig=True)) == on_rig
+    assert set(schema.rig_fields(held="friction")) == {"normal_force"}
+    assert schema.RIG_OVERRIDES[0] == "convention"
+
+
+def test_where_a_rig_parameter_may_be_set_derives_from_its_schema_entry():
+    import argparse
+
+    from lubrig_ros.app.selection import RunSelection
+    from lubrig_ros.cli.common import add_run_selection
+    from lubrig_ros.fit.parameters import fittable_names
+
+    parser = argparse.ArgumentParser()
+    add_run_selection(parser)
+    options = {o: a.help or "" for a in parser._actions for o in a.option_strings}
+    plant = {p.name for p in contract.PLANT_PARAMETERS}
+    base = default_config()
+    fittable = fittable_names(base)
+    for name, spec in schema.RIG_FIELDS.items():
+        if spec.cli_option is not None:
+            assert spec.range_text() in options[spec.cli_option], name
+        if spec.node:
+            assert f"rig.{name}" in plant and name in contract.RIG_FIELDS, name
+        if spec.on_rig:  # normal_force is fittable as the friction law's field
+            assert (name in fittable) == spec.fit, name
+        assert (name in schema.RIG_OVERRIDES) == spec.override, name
+        if spec.override and spec.on_rig and spec.unset == "":
+            value = spec.high if name != "natural_frequency" else spec.low
+            assert getattr(RunSelection(**{name: value}).resolve().rig, name) == value, name
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "message"),
+    [
+        ("mass", 0.0, "mass=0.0 must be > 0"),
+        ("natural_frequency", -1.0, "natural_frequency=-1.0 must be > 0"),
+        ("damping_ratio", -0.1, "damping_ratio=-0.1 must be >= 0"),
+        ("damping_ratio", math.nan, "damping_ratio=nan is not finite"),
+        ("mass", "x", "mass='x' is not a number"),
+    ],
+)
+def test_rig_parameters_check_the_models_own_bound_from_the_schema(name, value, message):
+    from lubrig_ros.core.params import RigParameters
+
+    with pytest.raises(ParameterError, match=re.escape(message)):
+        RigParameters(**{name: value})
+    assert RigParameters(damping_ratio=0.0).damping_ratio == 0.0
+
+
+def test_the_default_rig_states_every_rig_parameter():
+    """config/rig.yaml, the built-in defaults, has a line for every RIG_FIELDS entry (its range: above)."""
+    paths = {tuple(path) for path, _ in _field_lines(CONFIG / "rig.yaml")}
+    for name, spec in schema.RIG_FIELDS.items():
+        assert (("rig", name) if spec.on_rig else ("rig", spec.held, name)) in paths, name

@@ -91,8 +91,9 @@ RECORDER_PARTICIPANT = "lubrig_recorder"
 
 #: Largest |band velocity| the plant accepts from the band topic by default, m/s (the schema's).
 BAND_VELOCITY_LIMIT = schema.BAND_VELOCITY_LIMIT
-#: The rig fields the plant exposes as rig.<name> (normal_force is the friction law's).
-RIG_FIELDS: tuple[str, ...] = ("mass", "natural_frequency", "damping_ratio")
+#: The rig fields the plant exposes as rig.<name> (core/schema.py RIG_FIELDS with `node`;
+#: normal_force, the friction law's, and velocity_coupling, beside convention, are declared below).
+RIG_FIELDS: tuple[str, ...] = tuple(schema.rig_fields(on_rig=True, node=True))
 #: Longest a parameter period or timeout may be, s (a value beyond is a typo: minutes).
 MAX_PERIOD_S = 60.0
 
@@ -199,7 +200,7 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
             high=_RIG["velocity_coupling"].high,
             read_only=False,
             from_config="rig.velocity_coupling",
-            zero_means="the convention's γ",
+            zero_means=_RIG["velocity_coupling"].unset,
             nonzero_low=_RIG["velocity_coupling"].low,
         ),
         *(

@@ -2,9 +2,10 @@
 
 A run is selected by ONE source — a study case (1..10), a configuration file, or the built-in
 default (config/rig.yaml) — and then optionally overridden: the band profile, the contact area,
-rig fields (convention, velocity coupling γ, damping ratio, mass, natural frequency) and
-simulation fields (duration, sample rate, rtol). Overrides left at None keep the selected
-configuration's value, so the defaults live in one place: the configuration files under config/.
+rig fields (the convention and every core/schema.py RIG_FIELDS entry with `override`:
+velocity coupling γ, damping ratio, mass, natural frequency) and simulation fields (duration,
+sample rate, rtol). Overrides left at None keep the selected configuration's value, so the
+defaults live in one place: the configuration files under config/.
 
 Used by `lubrig simulate`, `lubrig rig`, `lubrig friction`, `lubrig stability`, the nodes
 (`case` / `config_file` parameters) and sweep specs (`base_case`).
@@ -12,16 +13,16 @@ Used by `lubrig simulate`, `lubrig rig`, `lubrig friction`, `lubrig stability`, 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from ..core.params import ParameterError
 from ..core.presets import CASE_NUMBERS, RunConfig, default_config, load_case, load_config
 from ..core.profiles import BandProfile
+from ..core.schema import RIG_OVERRIDES as RIG_OVERRIDES
 
-#: Rig fields an override may set (RunConfig.with_overrides).
-RIG_OVERRIDES = ("convention", "velocity_coupling", "damping_ratio", "mass", "natural_frequency")
 #: Simulation fields an override may set.
 RUN_OVERRIDES = ("duration", "sample_rate", "rtol")
 
@@ -58,28 +59,52 @@ def base_config(case: int | str | None = None, config_file: str | Path | None = 
     return default_config()
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class RunSelection:
-    """A run source plus overrides; `resolve()` gives the RunConfig."""
+    """A run source plus overrides; `resolve()` gives the RunConfig.
 
-    case: int | None = None  # 1..10 (text such as "3" is accepted and converted)
-    config_file: Path | None = None
-    band: BandProfile | None = None
-    contact_area: str | float | None = None  # 'corrected' | 'printed' | m²
-    convention: str | None = None
-    velocity_coupling: str | float | None = None  # γ: a convention name or a number > 0
-    damping_ratio: float | None = None
-    mass: float | None = None
-    natural_frequency: float | None = None
-    duration: float | None = None
-    sample_rate: float | None = None
-    rtol: float | None = None
+    Rig overrides are keywords named as the rig's fields (RIG_OVERRIDES: convention,
+    velocity_coupling, damping_ratio, ...), held in `rig`; None or absent keeps the base's value.
+    """
 
-    def __post_init__(self) -> None:
-        if self.case is not None:
-            object.__setattr__(self, "case", case_number(self.case))
-        if self.config_file is not None and not isinstance(self.config_file, Path):
-            object.__setattr__(self, "config_file", Path(self.config_file))
+    case: int | None  # 1..10 (text such as "3" is accepted and converted)
+    config_file: Path | None
+    band: BandProfile | None
+    contact_area: str | float | None  # 'corrected' | 'printed' | m²
+    duration: float | None
+    sample_rate: float | None
+    rtol: float | None
+    #: rig field -> value (velocity_coupling: a convention name or a number > 0)
+    rig: Mapping[str, Any] = field(hash=False)
+
+    def __init__(
+        self,
+        case: int | str | None = None,
+        config_file: Path | str | None = None,
+        band: BandProfile | None = None,
+        contact_area: str | float | None = None,
+        duration: float | None = None,
+        sample_rate: float | None = None,
+        rtol: float | None = None,
+        **rig: Any,
+    ) -> None:
+        unknown = set(rig) - set(RIG_OVERRIDES)
+        if unknown:
+            raise TypeError(
+                f"RunSelection got unknown override(s) {sorted(unknown)}; valid: {list(RIG_OVERRIDES)}"
+            )
+        values = {
+            "case": None if case is None else case_number(case),
+            "config_file": None if config_file is None else Path(config_file),
+            "band": band,
+            "contact_area": contact_area,
+            "duration": duration,
+            "sample_rate": sample_rate,
+            "rtol": rtol,
+            "rig": {k: v for k, v in rig.items() if v is not None},
+        }
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
         if self.case is not None and self.config_file is not None:
             raise ParameterError(
                 f"case={self.case!r} and config_file={str(self.config_file)!r} both given; select one source"
@@ -100,8 +125,8 @@ class RunSelection:
 
     def overrides(self) -> dict[str, Any]:
         """The rig and simulation overrides that are set (not None)."""
-        names = (*RIG_OVERRIDES, *RUN_OVERRIDES)
-        return {name: getattr(self, name) for name in names if getattr(self, name) is not None}
+        run = {name: getattr(self, name) for name in RUN_OVERRIDES if getattr(self, name) is not None}
+        return {**self.rig, **run}
 
     def resolve(self) -> RunConfig:
         """The run configuration: base, then band, contact area, rig and simulation overrides."""

@@ -118,13 +118,8 @@ def add_run_selection(parser: argparse.ArgumentParser) -> None:
             rig["velocity_coupling"],
         ),
     )
-    parser.add_argument("--zeta", metavar="Z", help=_ranged("damping ratio ζ", rig["damping_ratio"]))
-    parser.add_argument("--mass", metavar="KG", help=_ranged("mass m, kg", rig["mass"]))
-    parser.add_argument(
-        "--natural-frequency",
-        metavar="HZ",
-        help=_ranged("natural frequency f0, Hz", rig["natural_frequency"]),
-    )
+    for spec in rig_options():
+        parser.add_argument(str(spec.cli_option), metavar=spec.cli_metavar, help=_ranged(spec.label, spec))
     area = schema.friction_field("junction_kinetics", "contact_area")
     parser.add_argument(
         "--contact-area",
@@ -182,6 +177,17 @@ def _number(args: argparse.Namespace, name: str, option: str, what: str) -> floa
     return None if text is None else parse_finite(option, text, what)
 
 
+def rig_options() -> list[schema.RigField]:
+    """The rig fields with a `lubrig simulate` option (`--zeta`, `--mass`, ...), schema order."""
+    return [spec for spec in schema.RIG_FIELDS.values() if spec.override and spec.cli_option]
+
+
+def _rig_option(args: argparse.Namespace, spec: schema.RigField) -> float | None:
+    option = str(spec.cli_option)
+    dest = option.removeprefix("--").replace("-", "_")
+    return _number(args, dest, option, f"a {spec.name.replace('_', ' ')} in {spec.range_text()}")
+
+
 def band_from_args(args: argparse.Namespace) -> BandProfile | None:
     """The band override of --band-velocity | --cycle | --profile, None without one."""
     if getattr(args, "band_velocity", None) is not None:
@@ -217,9 +223,7 @@ def selection_from_args(args: argparse.Namespace) -> RunSelection:
             if getattr(args, "velocity_coupling", None) is None
             else parse_coupling(args.velocity_coupling)
         ),
-        damping_ratio=_number(args, "zeta", "--zeta", "a damping ratio >= 0"),
-        mass=_number(args, "mass", "--mass", "a mass > 0 in kg"),
-        natural_frequency=_number(args, "natural_frequency", "--natural-frequency", "a frequency > 0 in Hz"),
+        **{spec.name: _rig_option(args, spec) for spec in rig_options()},
         duration=_number(args, "duration", "--duration", "a duration > 0 in s"),
         sample_rate=_number(args, "sample_rate", "--sample-rate", "a sample rate > 0 in Hz"),
         rtol=_number(args, "rtol", "--rtol", "a relative tolerance in [1e-13, 1e-2]"),

@@ -17,7 +17,7 @@ from lubrig_ros.core.errors import InputError
 
 from ..app import rundir
 from ..core.presets import default_config
-from ..core.schema import RIG_FIELDS, friction_fields
+from ..core.schema import friction_fields, rig_fields
 from .common import (
     MAX_LOCAL_WORKERS,
     add_force,
@@ -37,8 +37,7 @@ def _source_text(args: argparse.Namespace) -> str:
 def _free_help() -> str:
     """Every fittable name of the default law and the rig with its unit and range (from the schema)."""
     law = type(default_config().rig.friction).law
-    rig = [spec for name, spec in RIG_FIELDS.items() if name != "normal_force"]
-    specs = [*rig, *friction_fields(law).values()]
+    specs = [*rig_fields(fit=True).values(), *friction_fields(law).values()]
     listed = "; ".join(f"{s.name} {s.range_text()}" for s in specs)
     return (
         f"a parameter to estimate (repeat or list several): rig fields and the friction law's fields "

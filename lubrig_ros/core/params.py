@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from typing import Any, ClassVar, Literal
 
 from .friction_laws import DEFAULT_LAW, law_parameters
-from .schema import JUNCTION_KINETICS_FIELDS, RIG_FIELDS, FieldSpec
+from .schema import JUNCTION_KINETICS_FIELDS, FieldSpec, rig_fields
 from .validation import ParameterError, _check_finite, _check_positive, _check_range
 
 __all__ = [
@@ -123,10 +123,10 @@ def check_rig_ranges(rig: RigParameters) -> None:
     them: the linear stability analysis explores damping ratios far beyond a rig's (ζ_crit reaches
     1e5 with γ = 1).
     """
-    for name in ("mass", "natural_frequency", "damping_ratio"):
-        RIG_FIELDS[name].check(getattr(rig, name))
-    if rig.velocity_coupling is not None:
-        RIG_FIELDS["velocity_coupling"].check(rig.velocity_coupling)
+    for name, rig_spec in rig_fields(on_rig=True).items():
+        value = getattr(rig, name)
+        if value is not None:  # a field that may be unset (velocity_coupling: the convention's γ)
+            rig_spec.check(value)
     ranges: dict[str, FieldSpec] = getattr(type(rig.friction), "ranges", {})
     for f in fields(rig.friction):
         spec = ranges.get(f.name)
@@ -143,7 +143,11 @@ def check_rig_ranges(rig: RigParameters) -> None:
 
 @dataclass(frozen=True)
 class RigParameters:
-    """Mass–spring–damper held against the band, plus the relative-velocity convention."""
+    """Mass–spring–damper held against the band, plus the relative-velocity convention.
+
+    Each field but `convention` and `friction` has its entry in core/schema.py's RIG_FIELDS
+    (unit, rig range, the model's own bound checked here, where a run may set it).
+    """
 
     mass: float = 0.1  # m, kg
     natural_frequency: float = 10.0  # f0, Hz
@@ -156,14 +160,8 @@ class RigParameters:
     velocity_coupling: float | str | None = None  # γ; a convention name is normalized in __post_init__
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "mass", _check_positive("mass", self.mass))
-        object.__setattr__(
-            self, "natural_frequency", _check_positive("natural_frequency", self.natural_frequency)
-        )
-        damping = _check_finite("damping_ratio", self.damping_ratio)
-        if damping < 0.0:
-            raise ParameterError(f"damping_ratio={self.damping_ratio!r} must be >= 0")
-        object.__setattr__(self, "damping_ratio", damping)
+        for name, spec in rig_fields(on_rig=True, unset="").items():
+            object.__setattr__(self, name, spec.check_model(getattr(self, name)))
         if self.convention not in CONVENTIONS:
             raise ParameterError(
                 f"convention={self.convention!r} is not valid; expected one of {list(CONVENTIONS)}"

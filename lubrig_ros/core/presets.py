@@ -16,7 +16,14 @@ from .. import __version__
 from .friction_laws import DEFAULT_LAW
 from .params import ParameterError, RigParameters, check_rig_ranges
 from .profiles import BandProfile, profile_from_dict, profile_to_dict
-from .schema import MAX_SAMPLES, MIN_SAMPLES_PER_PERIOD, SIMULATION_FIELDS, number_text
+from .schema import (
+    CONVENTION,
+    MAX_SAMPLES,
+    MIN_SAMPLES_PER_PERIOD,
+    RIG_OVERRIDES,
+    SIMULATION_FIELDS,
+    number_text,
+)
 
 SECTIONS = ("name", "description", "rig", "band", "simulation")
 SIMULATION_KEYS: tuple[str, ...] = tuple(SIMULATION_FIELDS)
@@ -119,9 +126,9 @@ class RunConfig:
 
     def with_overrides(self, **changes: Any) -> RunConfig:
         """Copy with rig fields (convention, damping_ratio, ...) or run fields replaced."""
-        rig_fields = {"mass", "natural_frequency", "damping_ratio", "convention", "velocity_coupling"}
+        rig_fields = set(RIG_OVERRIDES)
         rig_changes = {k: v for k, v in changes.items() if k in rig_fields and v is not None}
-        if "convention" in rig_changes and "velocity_coupling" not in rig_changes:
+        if CONVENTION in rig_changes and "velocity_coupling" not in rig_changes:
             rig_changes["velocity_coupling"] = None  # a named convention replaces an explicit γ
         run_changes = {k: v for k, v in changes.items() if k not in rig_fields and v is not None}
         return replace(self, rig=replace(self.rig, **rig_changes), **run_changes)

@@ -10,10 +10,14 @@ Who applies them:
 * the nodes' parameter descriptors carry them (app/node_parameters.py derives the plant's and
   belt_drive's parameters from these tables, so ``ros2 param describe`` shows the same range);
 * ``lubrig --help`` shows them (cli/common.py), config/rig.yaml states them in its comments
-  (test/test_schema.py checks both against this module).
+  (test/test_schema.py checks both against this module);
+* a rig field's entry (RigField) also says where a run may set it: the run selection's
+  overrides (app/selection.py), its ``lubrig simulate`` option, the plant's ``rig.<name>``
+  parameter and ``lubrig fit --free`` derive from RIG_FIELDS.
 
 The parameter dataclasses themselves (RigParameters, FrictionParameters) only demand finite,
-positive values: the linear stability analysis and the tests explore far beyond a rig's ranges.
+positive values (a rig field: its `model_low`): the linear stability analysis and the tests
+explore far beyond a rig's ranges.
 """
 
 from __future__ import annotations
@@ -27,20 +31,24 @@ from .validation import ParameterError, _check_finite
 __all__ = [
     "BAND_FIELDS",
     "BAND_VELOCITY_LIMIT",
+    "CONVENTION",
     "JUNCTION_KINETICS_FIELDS",
     "MAX_SAMPLES",
     "MIN_SAMPLES_PER_PERIOD",
     "NORMAL_FORCE",
     "RIG_FIELDS",
+    "RIG_OVERRIDES",
     "SAMPLE_FIELDS",
     "SAMPLE_UNITS",
     "SIMULATION_FIELDS",
     "FieldSpec",
+    "RigField",
     "SampleField",
     "band_field",
     "field_table",
     "friction_field",
     "friction_fields",
+    "rig_fields",
     "unit_column",
 ]
 
@@ -112,22 +120,132 @@ MIN_SAMPLES_PER_PERIOD = 20
 #: `lubrig simulate` can hold in this machine's memory is checked there on top.
 MAX_SAMPLES = 1_000_000_000
 
-NORMAL_FORCE = FieldSpec("normal_force", "N", 1e-9, 10.0, "normal force pressing the mass on the band", "N")
 
-RIG_FIELDS: dict[str, FieldSpec] = field_table(
-    FieldSpec("mass", "kg", 1e-4, 1e3, "mass of the slider", "m"),
-    FieldSpec("natural_frequency", "Hz", 1e-2, 500.0, "natural frequency, k = m (2π f0)²", "f0"),
-    FieldSpec("damping_ratio", "1", 0.0, 2.0, "damping ratio, c = 2 ζ sqrt(k m) (0: undamped)", "ζ"),
-    FieldSpec(
-        "velocity_coupling",
-        "1",
-        1e-6,
-        1e3,
-        "explicit γ in v_rel = v_band − γ ẋ (s/s; physical 1, paper 1/ω0, hertz 1/f0)",
-        "γ",
-    ),
-    NORMAL_FORCE,
+@dataclass(frozen=True)
+class RigField(FieldSpec):
+    """A rig parameter: its FieldSpec plus where a run may set it and what the model itself needs.
+
+    The range (`low`, `high`) is a rig's: every run configuration is checked against it. The
+    model's own bound (`model_low`, open unless `model_low_open` is False) is what RigParameters
+    demands: the linear stability analysis and the tests go far beyond a rig's range (ζ_crit
+    reaches 1e5 with γ = 1). A field `held` by the friction law (normal_force) is one of the law
+    parameters' fields; the others are RigParameters fields of the same name. What derives from
+    an entry: RigParameters' checks, every run configuration's range check, the overrides of a run
+    selection (`override`) and the `lubrig simulate` option (`option`: '' its name with dashes,
+    None none), the plant's `rig.<name>` parameter (`node`), `lubrig fit --free` (`fit`) and the
+    docs' tables generated from those.
+    """
+
+    held: str = "rig"  # "rig": a RigParameters field; "friction": the friction law's
+    option: str | None = ""  # `lubrig simulate --<option>`; '' its name with dashes; None none
+    metavar: str = ""  # the option's value in --help; '' its unit in capitals (X for a number)
+    override: bool = True  # a run selection (command line, launchers) may set it
+    node: bool = True  # the plant's parameter rig.<name>, applied at the next reset
+    fit: bool = True  # `lubrig fit --free` may estimate it
+    unset: str = ""  # for a field that may be left unset (None): what that means
+    model_low: float = 0.0
+    model_low_open: bool = True
+
+    @property
+    def on_rig(self) -> bool:
+        """True for a RigParameters field (not one of the friction law's)."""
+        return self.held == "rig"
+
+    @property
+    def cli_option(self) -> str | None:
+        """'--zeta': the command-line option of the field, None for none."""
+        if self.option is None:
+            return None
+        return "--" + (self.option or self.name.replace("_", "-"))
+
+    @property
+    def cli_metavar(self) -> str:
+        """The option's value in --help: 'KG', 'HZ', 'Z'."""
+        if self.metavar:
+            return self.metavar
+        return "X" if self.unit in ("1", "") else self.unit.upper()
+
+    @property
+    def label(self) -> str:
+        """'mass m, kg', 'damping ratio ζ': name, symbol and unit for help texts."""
+        text = f"{self.name.replace('_', ' ')} {self.symbol}".rstrip()
+        return text if self.unit in ("1", "") else f"{text}, {self.unit}"
+
+    def check_model(self, value: Any, name: str | None = None) -> float:
+        """`value` as a float if finite and within the model's own bound (not the rig's range).
+
+        Otherwise ParameterError: 'mass=0.0 must be > 0', 'damping_ratio=-0.1 must be >= 0'.
+        """
+        label = name or self.name
+        number = _check_finite(label, value)
+        inside = number > self.model_low if self.model_low_open else number >= self.model_low
+        if not inside:
+            relation = ">" if self.model_low_open else ">="
+            raise ParameterError(f"{label}={value!r} must be {relation} {number_text(self.model_low)}")
+        return number
+
+
+NORMAL_FORCE = RigField(
+    "normal_force",
+    "N",
+    1e-9,
+    10.0,
+    "normal force pressing the mass on the band",
+    "N",
+    held="friction",
+    option=None,
+    override=False,
+    node=False,
+    fit=False,
 )
+
+#: The rig's parameters. A new one is an entry here, its field on core.params.RigParameters and
+#: its line in config/rig.yaml (docs/extending.md); normal_force is the friction law's field
+#: (its `ranges` hold it too), and velocity_coupling's option and node parameter are declared
+#: beside the convention's (a convention name is a value of it too; 0 on the node: the
+#: convention's γ).
+RIG_FIELDS: dict[str, RigField] = {
+    f.name: f
+    for f in (
+        RigField("mass", "kg", 1e-4, 1e3, "mass of the slider", "m"),
+        RigField("natural_frequency", "Hz", 1e-2, 500.0, "natural frequency, k = m (2π f0)²", "f0"),
+        RigField(
+            "damping_ratio",
+            "1",
+            0.0,
+            2.0,
+            "damping ratio, c = 2 ζ sqrt(k m) (0: undamped)",
+            "ζ",
+            option="zeta",
+            metavar="Z",
+            model_low_open=False,
+        ),
+        RigField(
+            "velocity_coupling",
+            "1",
+            1e-6,
+            1e3,
+            "explicit γ in v_rel = v_band − γ ẋ (s/s; physical 1, paper 1/ω0, hertz 1/f0)",
+            "γ",
+            option=None,
+            node=False,
+            unset="the convention's γ",
+        ),
+        NORMAL_FORCE,
+    )
+}
+
+#: The rig's named choice of γ (core.params.CONVENTIONS), set beside velocity_coupling.
+CONVENTION = "convention"
+#: The rig fields a run selection may override (RunConfig.with_overrides): the convention and
+#: every RIG_FIELDS entry with `override`.
+RIG_OVERRIDES: tuple[str, ...] = (CONVENTION, *(n for n, f in RIG_FIELDS.items() if f.override))
+
+
+def rig_fields(**flags: object) -> dict[str, RigField]:
+    """The RIG_FIELDS entries whose attributes have the given values (e.g. on_rig=True, node=True)."""
+    return {n: f for n, f in RIG_FIELDS.items() if all(getattr(f, k) == v for k, v in flags.items())}
+
 
 #: The ranges of the junction-kinetics law's fields (core.params.FrictionParameters.ranges); every
 #: other law states its own on its parameter dataclass (`ranges`, e.g. core/stribeck.py).

@@ -1,10 +1,10 @@
 """The parameters a fit may free: names, units and physical bounds, all from core/schema.py.
 
-A free parameter is a field of the rig (RIG_FIELDS: damping_ratio, natural_frequency,
-velocity_coupling, mass) or of the run's friction law (their dataclass's `ranges`: for the junction law
-shear_modulus, reference_activation_time, activation_exponent, reference_viscosity,
-shear_thinning_exponent, contact_area, ...; normal_force lives there too). Nothing here repeats a
-unit or a range: each FreeParameter holds the schema's FieldSpec.
+A free parameter is a field of the rig (RIG_FIELDS entries with `fit`: damping_ratio,
+natural_frequency, velocity_coupling, mass) or of the run's friction law (their dataclass's
+`ranges`: for the junction law shear_modulus, reference_activation_time, activation_exponent,
+reference_viscosity, shear_thinning_exponent, contact_area, ...; normal_force lives there too).
+Nothing here repeats a unit or a range: each FreeParameter holds the schema's FieldSpec.
 
 The optimizer works on a transformed value θ: ln p for a field whose physical range is strictly
 positive (moduli, times, areas span decades, and ln makes a relative change the natural step),
@@ -23,7 +23,7 @@ from lubrig_ros.core.errors import InputError
 
 from ..core.friction_laws import law_names
 from ..core.presets import RunConfig
-from ..core.schema import RIG_FIELDS, FieldSpec, friction_fields
+from ..core.schema import FieldSpec, friction_fields, rig_fields
 
 #: Rig fields a fit may free (normal_force is the friction law's field, named there).
 RIG_SECTION = "rig"
@@ -73,17 +73,20 @@ def _law(config: RunConfig) -> str:
 
 def fittable_names(config: RunConfig) -> list[str]:
     """Every name --free accepts for this configuration's friction law, rig fields first."""
-    rig = [name for name in RIG_FIELDS if name != "normal_force"]
-    return [*rig, *friction_fields(_law(config))]
+    return [*rig_fields(fit=True), *friction_fields(_law(config))]
 
 
 def current_value(config: RunConfig, parameter: FreeParameter) -> float:
     """The parameter's value in `config` (velocity_coupling: the γ its convention gives)."""
     if parameter.section == FRICTION_SECTION:
         return float(getattr(config.rig.friction, parameter.name))
-    if parameter.name == "velocity_coupling":
+    return _rig_value(config, parameter.name)
+
+
+def _rig_value(config: RunConfig, name: str) -> float:
+    if name == "velocity_coupling":
         return float(config.rig.velocity_factor)
-    return float(getattr(config.rig, parameter.name))
+    return float(getattr(config.rig, name))
 
 
 def free_parameters(names: list[str], config: RunConfig) -> list[FreeParameter]:
@@ -103,8 +106,9 @@ def free_parameters(names: list[str], config: RunConfig) -> list[FreeParameter]:
             )
         if any(p.name == name for p in chosen):
             raise InputError(f"--free {name!r} is given twice; name each parameter once")
-        section = RIG_SECTION if name in RIG_FIELDS and name != "normal_force" else FRICTION_SECTION
-        spec = RIG_FIELDS[name] if section == RIG_SECTION else friction_fields(law)[name]
+        rig = rig_fields(fit=True)
+        section = RIG_SECTION if name in rig else FRICTION_SECTION
+        spec = rig[name] if section == RIG_SECTION else friction_fields(law)[name]
         probe = FreeParameter(name, section, spec, 1.0)
         value = current_value(config, probe)
         scale = 1.0 if probe.logarithmic else max(abs(value), 1e-2 * (spec.high - spec.low))
@@ -130,11 +134,9 @@ def fixed_values(config: RunConfig, parameters: list[FreeParameter]) -> dict[str
     """Every rig and friction field the fit held fixed, with its value (for fit.json)."""
     free = {p.name for p in parameters}
     held: dict[str, float | str] = {}
-    for name in ("mass", "natural_frequency", "damping_ratio"):
+    for name in rig_fields(fit=True):
         if name not in free:
-            held[name] = float(getattr(config.rig, name))
-    if "velocity_coupling" not in free:
-        held["velocity_coupling"] = float(config.rig.velocity_factor)
+            held[name] = _rig_value(config, name)
     held["friction_law"] = _law(config)
     for f in fields(config.rig.friction):
         if f.name not in free:
