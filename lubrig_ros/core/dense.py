@@ -6,8 +6,10 @@ never the peak itself. `mu_extremes` finds the true extremes of μ(v_rel(t)) ove
 run: the sample intervals where v_rel can pass an extreme of μ unseen are integrated again with the
 project's integrator (core.integrator, the same law and tolerance, restarted from the sampled
 state, the band linear between the two samples exactly as in the run) at `zoom` sub-samples per
-interval, then `zoom` sub-samples again around the sub-sample holding the extreme, `levels` times
-or until the extreme changes by less than 1e-6 of itself (1 ms → 1 µs → 2 ns → … with zoom 1000).
+interval, then `zoom` sub-samples again over the two sub-intervals around the sub-sample holding
+the extreme, `levels` times or until the extreme changes by less than 1e-6 of itself (zoom 100:
+1 ms → 10 µs → 200 ns → 4 ns → … → 1.6 ps at the 8th level). Zoom 100 costs a third of zoom 1000
+for the same extremes (within 1e-10 on case 8 at s = 0.08).
 
 Intervals integrated again (candidates): v_rel changes sign; |v_rel| crosses the friction peak's
 velocity (a stick entry or exit); or an end of the interval lies between the peak's velocity and
@@ -34,7 +36,7 @@ from .params import RigParameters
 from .trajectory import Trajectory
 
 #: Sub-samples per interval at each zoom level, levels at most, and the stop on the extreme's change.
-ZOOM, LEVELS, CONVERGED = 1000, 5, 1e-6
+ZOOM, LEVELS, CONVERGED = 100, 8, 1e-6
 #: Candidate intervals: an end with |v_rel| between the friction peak's velocity and this (m/s).
 NEAR = 1e-9
 
