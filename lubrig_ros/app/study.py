@@ -37,6 +37,14 @@ class Verdict:
     criterion: str
     measured: str
     agree: bool
+    #: For a criterion with a stated choice (C2a's tolerance, C9b/C10b's reference level): whether
+    #: it holds for some and for every value of the choice's reasonable range; None otherwise.
+    span: tuple[bool, bool] | None = None
+
+    @property
+    def marginal(self) -> bool:
+        """The verdict flips within the reasonable range of the criterion's choice."""
+        return self.span is not None and self.span[0] != self.span[1]
 
 
 STATEMENTS: tuple[Statement, ...] = (
@@ -315,8 +323,26 @@ def scorecard(metrics: Metrics, rig: RigParameters) -> list[Verdict]:
     verdicts = []
     for s in STATEMENTS:
         agree, measured = s.evaluate(metrics, rig)
-        verdicts.append(Verdict(s.key, s.topic, s.study, s.criterion, measured, bool(agree)))
+        span = SPANS[s.key](metrics) if s.key in SPANS else None
+        verdicts.append(Verdict(s.key, s.topic, s.study, s.criterion, measured, bool(agree), span))
     return verdicts
+
+
+#: Criteria whose verdict is also evaluated over the reasonable range of their stated choice.
+SPANS: dict[str, Callable[[Metrics], tuple[bool, bool] | None]] = {
+    "C2a": check.same_amplitude_span,
+    "C9b": check.gone_span(9, 10.0),
+    "C10b": check.gone_span(10, 5.0),
+}
+
+
+def score_span(verdicts: list[Verdict]) -> tuple[int, int]:
+    """Statements agreed when every marginal verdict goes against, and when every one goes for."""
+    agreed = sum(v.agree for v in verdicts)
+    return (
+        agreed - sum(1 for v in verdicts if v.marginal and v.agree),
+        agreed + sum(1 for v in verdicts if v.marginal and not v.agree),
+    )
 
 
 def transitions(scan: dict[float, Metrics]) -> list[tuple[float, float]]:

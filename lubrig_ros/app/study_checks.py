@@ -358,3 +358,27 @@ FUNDAMENTALS = {
     9: 1 / 0.03,
     10: 1 / 0.03,
 }
+
+
+# --- how a verdict moves across the reasonable range of a criterion's stated choice -----------
+
+
+def same_amplitude_span(metrics: Metrics) -> tuple[bool, bool]:
+    """C2a over t in SAME_TOLERANCES: (holds for some t, holds for every t)."""
+    grows = _grows_then_stationary(metrics[2])
+    ratio = metrics[2]["x_peak_to_peak"] / metrics[1]["x_peak_to_peak"]
+    needed = max(ratio, 1.0 / ratio) - 1.0
+    return grows and needed <= SAME_TOLERANCES[1], grows and needed <= SAME_TOLERANCES[0]
+
+
+def gone_span(n: int, when: float) -> Callable[[Metrics], tuple[bool, bool] | None]:
+    """C9b/C10b over the reference levels GONE_FRACTIONS: (holds at some, holds at every level)."""
+
+    def span(metrics: Metrics) -> tuple[bool, bool] | None:
+        times = metrics[n].get("f0_gone_times")
+        if not times:
+            return None
+        inside = [math.isfinite(t) and 0.5 * when <= t <= 2.0 * when for t in times]
+        return any(inside), all(inside)
+
+    return span

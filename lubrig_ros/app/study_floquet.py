@@ -48,7 +48,7 @@ class PeriodDoubling:
 
 
 def _pair(values: np.ndarray) -> str:
-    parts = [f"{v.real:.4f}" if abs(v.imag) < 1e-12 else f"{v:.4f}" for v in values]
+    parts = [f"{v.real:.6f}" if abs(v.imag) < 1e-12 else f"{v:.6f}" for v in values]
     return "(" + ", ".join(parts) + ")"
 
 

@@ -187,7 +187,9 @@ def run_paper(
     An existing non-empty out is refused unless force (PAGE_OUTPUTS are replaced then);
     progress(rig seconds done, detail) is called after every run.
     """
+    from ..app import analysis, rundir  # noqa: F401  (imported once here, inherited by forked workers)
     from ..app.rundir import prepare_output_dir
+    from ..figures import run, timeseries  # noqa: F401
     from ..figures.curves import plot_friction_curve, plot_stability_map, save_figure
     from .html import write_html_page
 
@@ -240,8 +242,8 @@ def run_paper(
         for job in as_completed(jobs):
             name = jobs[job]
             number, metrics[name][number], summaries[name][number] = job.result()
-            run = "stickslip" if number == STICKSLIP else f"case{number:02d}"
-            advance(duration, f"{name} {run}")
+            label = "stickslip" if number == STICKSLIP else f"case{number:02d}"
+            advance(duration, f"{name} {label}")
         doubling = doubling_job.result()
     for name in CONVENTIONS:
         summaries[name] = dict(sorted(summaries[name].items()))
