@@ -11,10 +11,12 @@ directories are in DIR/runs/<convention>/.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
+import os
 import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
@@ -121,10 +123,24 @@ def _run_case(
     return number, metrics, summary
 
 
+@contextlib.contextmanager
+def _single_threaded_blas() -> Iterator[None]:
+    """BLAS/OpenMP thread counts of 1 in the environment that spawned workers start with."""
+    names = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+    saved = {name: os.environ.get(name) for name in names}
+    os.environ.update(dict.fromkeys(names, "1"))
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
 def paper_workers() -> int:
     """Worker processes for `lubrig paper`: the CPUs this process may use, at most PAPER_WORKERS."""
-    import os
-
     try:
         cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
@@ -213,10 +229,15 @@ def run_paper(
     # every run of every reading (the presets' reading first: its figures cost most) and the
     # Floquet computation in worker processes; the friction curve and stability maps meanwhile here
     order = [preset, *(name for name in CONVENTIONS if name != preset)]
-    context = multiprocessing.get_context(
-        "fork" if "fork" in multiprocessing.get_all_start_methods() else None
-    )
-    with ProcessPoolExecutor(workers or paper_workers(), mp_context=context) as pool:
+    # spawned workers with one BLAS thread each: forked ones inherit the parent's OpenBLAS thread
+    # pool, and 2 workers × 2 spinning BLAS threads on 2 cores made the run slower than serial
+    # (docs/report.md)
+    with (
+        _single_threaded_blas(),
+        ProcessPoolExecutor(
+            workers or paper_workers(), mp_context=multiprocessing.get_context("spawn")
+        ) as pool,
+    ):
         doubling_job = pool.submit(period_doubling)
         jobs = {
             pool.submit(
