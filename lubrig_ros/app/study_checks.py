@@ -19,7 +19,11 @@ from ..core import criteria
 from ..core.friction import friction_coefficient, friction_minimum, friction_peak
 from ..core.params import RigParameters
 from ..core.stability import critical_damping_ratio, unstable_intervals
-from .study_runs import GONE_FRACTION, REALISTIC_ZETA, STICKSLIP, Metrics
+from .study_runs import GONE_FRACTION, GONE_FRACTIONS, REALISTIC_ZETA, STICKSLIP, Metrics
+
+#: "Identical amplitude levels" (C2a): the ratio within [1/(1 + t), 1 + t]; chosen t and the
+#: reasonable range of t over which the page shows the verdict.
+SAME_TOLERANCE, SAME_TOLERANCES = 0.25, (0.2, 0.3)
 
 
 def _g(value: float | None, digits: int = 3) -> str:
@@ -45,9 +49,22 @@ def amplitude_text(m: dict[str, Any]) -> str:
     )
 
 
+def mu_bounds(m: dict[str, Any]) -> tuple[float, float]:
+    """μ's extremes over the second half between samples (core/dense.py), else the sampled ones."""
+    low, high = m.get("mu_min_dense"), m.get("mu_max_dense")
+    return (m["mu_min"] if low is None else low, m["mu_max"] if high is None else high)
+
+
 def _mu_within(m: dict[str, Any], low: float, high: float) -> bool:
-    within: bool = m["mu_min"] >= low and m["mu_max"] <= high
-    return within
+    lo, hi = mu_bounds(m)
+    return lo >= low and hi <= high
+
+
+def mu_text(m: dict[str, Any]) -> str:
+    lo, hi = mu_bounds(m)
+    dense = m.get("mu_max_dense") is not None
+    head = f"μ {lo:.3g} … {hi:.3g}" + (" between samples" if dense else " (sampled)")
+    return head + (f" (sampled at 1 kHz {m['mu_min']:.3g} … {m['mu_max']:.3g})" if dense else "")
 
 
 # --- statement checks -------------------------------------------------------------------------
@@ -100,9 +117,11 @@ def stabilizable(_: Metrics, rig: RigParameters) -> tuple[bool, str]:
 
 def stickslip(metrics: Metrics, _: RigParameters) -> tuple[bool, str]:
     m = metrics[STICKSLIP]
+    high = mu_bounds(m)[1]
     return (
-        m["stick_fraction"] > 0.3 and m["mu_max"] > 0.155,
-        f"stick fraction {m['stick_fraction']:.2f}, μ max {m['mu_max']:.3f}, p-p {_g(m['x_peak_to_peak'])} m",
+        m["stick_fraction"] > 0.3 and high > 0.155,
+        f"stick fraction {m['stick_fraction']:.2f}, μ max {high:.3f} (sampled {m['mu_max']:.3f}), "
+        f"p-p {_g(m['x_peak_to_peak'])} m",
     )
 
 
@@ -143,7 +162,15 @@ def harmonic_set(n: int, wanted: list[int], k: int) -> Callable[[Metrics, RigPar
 
 def case2_same_amplitude(metrics: Metrics, _: RigParameters) -> tuple[bool, str]:
     ratio = metrics[2]["x_peak_to_peak"] / metrics[1]["x_peak_to_peak"]
-    return 0.8 <= ratio <= 1.25, f"p-p case 2 / case 1 = {ratio:.2f}"
+    needed = max(ratio, 1.0 / ratio) - 1.0  # the smallest tolerance t for which it holds
+    lo, hi = SAME_TOLERANCES
+    if needed <= lo:
+        over = f"holds over the whole reasonable range t = {lo:.0%} … {hi:.0%}"
+    elif needed > hi:
+        over = f"differs over the whole reasonable range t = {lo:.0%} … {hi:.0%}"
+    else:
+        over = f"holds for t ≥ {needed:.2%} only, within the reasonable {lo:.0%} … {hi:.0%}: marginal"
+    return needed <= SAME_TOLERANCE, f"p-p case 2 / case 1 = {ratio:.4f} ({over})"
 
 
 def case3_plateaus(n: int) -> Callable[[Metrics, RigParameters], tuple[bool, str]]:
@@ -232,8 +259,9 @@ def case8_frequencies(metrics: Metrics, _: RigParameters) -> tuple[bool, str]:
 
 def case8_mu(metrics: Metrics, _: RigParameters) -> tuple[bool, str]:
     m = metrics[8]
-    ok = 5e-3 <= m["mu_min"] <= 7.5e-3 and 0.1 <= m["mu_max"] <= 0.17
-    return ok, f"μ {m['mu_min']:.3g} … {m['mu_max']:.3g}"
+    lo, hi = mu_bounds(m)
+    ok = 5e-3 <= lo <= 7.5e-3 and 0.1 <= hi <= 0.17
+    return ok, mu_text(m)
 
 
 def fast_decay(n: int, compare: int) -> Callable[[Metrics, RigParameters], tuple[bool, str]]:
@@ -252,10 +280,28 @@ def fast_decay(n: int, compare: int) -> Callable[[Metrics, RigParameters], tuple
 
 
 def gone(n: int, when: float) -> Callable[[Metrics, RigParameters], tuple[bool, str]]:
+    def inside(time: float | None) -> bool:
+        return time is not None and math.isfinite(time) and 0.5 * when <= time <= 2.0 * when
+
     def check(metrics: Metrics, _: RigParameters) -> tuple[bool, str]:
-        gone = metrics[n]["f0_gone_time"]
-        ok = gone is not None and 0.5 * when <= gone <= 2.0 * when
-        return ok, f"10 Hz amplitude below {GONE_FRACTION:g} × its early level from {_g(gone)} s"
+        m = metrics[n]
+        gone = m["f0_gone_time"]
+        text = f"10 Hz amplitude below {GONE_FRACTION:g} × its early level from {_g(gone)} s"
+        times = m.get("f0_gone_times")
+        if times:
+            holds = [f for f, time in zip(GONE_FRACTIONS, times, strict=True) if inside(time)]
+            each = ", ".join(f"{f:g}: {_g(time)} s" for f, time in zip(GONE_FRACTIONS, times, strict=True))
+            verdict = (
+                "holds at every reference level"
+                if len(holds) == len(GONE_FRACTIONS)
+                else "holds at none"
+                if not holds
+                else "holds at " + ", ".join(f"{f:g}" for f in holds) + " only"
+            )
+            text += (
+                f"; per reference level {each} ({verdict} of {GONE_FRACTIONS[0]:g} … {GONE_FRACTIONS[-1]:g})"
+            )
+        return inside(gone), text
 
     return check
 
@@ -279,9 +325,13 @@ def mu_range(
 ) -> Callable[[Metrics, RigParameters], tuple[bool, str]]:
     def check(metrics: Metrics, _: RigParameters) -> tuple[bool, str]:
         bad = [n for n in cases if not _mu_within(metrics[n], low, high)]
-        lo = min(metrics[n]["mu_min"] for n in cases)
-        hi = max(metrics[n]["mu_max"] for n in cases)
-        return not bad, f"μ over cases {lo:.4g} … {hi:.4g}" + (f"; outside: cases {bad}" if bad else "")
+        lo = min(mu_bounds(metrics[n])[0] for n in cases)
+        hi = max(mu_bounds(metrics[n])[1] for n in cases)
+        sampled = (min(metrics[n]["mu_min"] for n in cases), max(metrics[n]["mu_max"] for n in cases))
+        return not bad, (
+            f"μ over cases {lo:.4g} … {hi:.4g} between samples (sampled {sampled[0]:.4g} … {sampled[1]:.4g})"
+            + (f"; outside: cases {bad}" if bad else "")
+        )
 
     return check
 
@@ -308,3 +358,27 @@ FUNDAMENTALS = {
     9: 1 / 0.03,
     10: 1 / 0.03,
 }
+
+
+# --- how a verdict moves across the reasonable range of a criterion's stated choice -----------
+
+
+def same_amplitude_span(metrics: Metrics) -> tuple[bool, bool]:
+    """C2a over t in SAME_TOLERANCES: (holds for some t, holds for every t)."""
+    grows = _grows_then_stationary(metrics[2])
+    ratio = metrics[2]["x_peak_to_peak"] / metrics[1]["x_peak_to_peak"]
+    needed = max(ratio, 1.0 / ratio) - 1.0
+    return grows and needed <= SAME_TOLERANCES[1], grows and needed <= SAME_TOLERANCES[0]
+
+
+def gone_span(n: int, when: float) -> Callable[[Metrics], tuple[bool, bool] | None]:
+    """C9b/C10b over the reference levels GONE_FRACTIONS: (holds at some, holds at every level)."""
+
+    def span(metrics: Metrics) -> tuple[bool, bool] | None:
+        times = metrics[n].get("f0_gone_times")
+        if not times:
+            return None
+        inside = [math.isfinite(t) and 0.5 * when <= t <= 2.0 * when for t in times]
+        return any(inside), all(inside)
+
+    return span

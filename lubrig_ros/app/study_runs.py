@@ -18,6 +18,7 @@ import numpy as np
 from lubrig_ros.core.errors import InputError
 
 from ..core import criteria
+from ..core.dense import mu_extremes
 from ..core.friction import friction_coefficient, stick_velocity
 from ..core.params import RigParameters
 from ..core.presets import RunConfig
@@ -29,6 +30,9 @@ REALISTIC_ZETA = 0.1
 #: The 10 Hz component "disappears" when its amplitude stays below this fraction of its early
 #: level (wavelet power below 1 % of it).
 GONE_FRACTION = 0.1
+#: The reasonable range of that choice (amplitude 3 % … 30 % of the early level), measured too so
+#: that the page can show over which of them C9b/C10b hold.
+GONE_FRACTIONS = (0.03, 0.05, 0.1, 0.2, 0.3)
 #: Spectral peaks kept per run (strongest first) and their floor relative to the strongest.
 PEAKS = 8
 PEAK_FLOOR = 0.01
@@ -78,7 +82,13 @@ def case_metrics(config: RunConfig, trajectory: Trajectory) -> dict[str, Any]:
             )
         ),
         "f0_gone_time": _finite(criteria.disappearance_time(t, x - x.mean(), f0, fraction=GONE_FRACTION)),
+        "f0_gone_times": [
+            criteria.disappearance_time(t, x - x.mean(), f0, fraction=f) for f in GONE_FRACTIONS
+        ],
     }
+    start = int(np.argmax(half))
+    dense = mu_extremes(trajectory, rig, config.rtol, start)
+    out.update(mu_min_dense=dense.mu_min, mu_max_dense=dense.mu_max, mu_dense_resolution=dense.resolution)
     centres, amplitude = criteria.component_amplitude(t, x - x.mean(), f0, window=1.0)
     after = centres >= 0.5
     reach = np.nonzero(after & (amplitude >= 0.3 * amplitude[after].max()))[0]
@@ -136,7 +146,7 @@ def measure(coupling: str | float, duration: float = 20.0) -> Metrics:
 # --- coupling scan table (one row per coupling s and run; committed under docs/study/) ------------
 
 #: Metric columns of the scan table, in order; list-valued ones are written space-separated.
-SCAN_LISTS = ("peak_frequencies_hz", "peak_amplitudes")
+SCAN_LISTS = ("peak_frequencies_hz", "peak_amplitudes", "f0_gone_times")
 
 
 def scan_rows(scan: dict[float, Metrics]) -> list[dict[str, Any]]:

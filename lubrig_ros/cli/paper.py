@@ -1,7 +1,8 @@
 """`lubrig paper --out DIR`: reproduce the study offline, score every statement, write comparison.md.
 
 The coupling scan is read from the committed table (docs/study/coupling_scan.csv) unless
---recompute-scan runs it again on the sweep engine (serial, or --workers N local Dask workers);
+--recompute-scan runs it again on the sweep engine (serial, or --workers N local Dask workers); the
+runs of the page go to --workers N processes (default: the CPUs available, at most 2);
 --docs DOCS copies the page to DOCS/study.md and its figures to DOCS/study/.
 """
 
@@ -39,13 +40,11 @@ def run(args: argparse.Namespace) -> int:
     check_fits_in_memory(round(duration * rate), rate)
     out = prepare_output_dir(Path(args.out), args.force, "--out", (*PAGE_OUTPUTS, SCAN_TABLE, "scan"))
     started = time.perf_counter()
+    workers = parse_workers(args.workers) if args.workers is not None else None
     if args.recompute_scan:
         from ..sweep.engine import LOCAL, SERIAL
         from ..sweep.study import run_scan
 
-        workers = None
-        if args.workers is not None:
-            workers = parse_workers(args.workers)
         scan = run_scan(out / "scan", scheduler=LOCAL if workers else SERIAL, workers=workers)
         source = f"recomputed in {time.perf_counter() - started:.0f} s"
     else:
@@ -58,7 +57,9 @@ def run(args: argparse.Namespace) -> int:
     write_scan_csv(out / SCAN_TABLE, scan)
     bar = Progress("lubrig paper", total_rig_time(duration))
     try:
-        page = run_paper(out, duration, scan=scan, scan_source=source, force=True, progress=bar.update)
+        page = run_paper(
+            out, duration, scan=scan, scan_source=source, force=True, progress=bar.update, workers=workers
+        )
     finally:
         bar.finish()
     print(f"lubrig paper: done in {time.perf_counter() - started:.1f} s; comparison: {page}")
@@ -90,7 +91,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     scan.add_argument(
         "--recompute-scan", action="store_true", help="run the coupling scan on the sweep engine"
     )
-    parser.add_argument("--workers", metavar="N", help="with --recompute-scan: local Dask workers")
+    parser.add_argument(
+        "--workers",
+        metavar="N",
+        help="worker processes for the runs (default: the CPUs available, at most 2); with "
+        "--recompute-scan also the scan's local Dask workers",
+    )
     parser.add_argument(
         "--docs", metavar="DOCS", help="copy the page to DOCS/study.md, figures to DOCS/study/"
     )

@@ -11,9 +11,13 @@ directories are in DIR/runs/<convention>/.
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
+import os
 import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +27,7 @@ from lubrig_ros.core.errors import InputError
 
 from ..app.selection import base_config
 from ..app.study import STATEMENTS, Verdict, scorecard
+from ..app.study_floquet import period_doubling
 from ..app.study_runs import STICKSLIP, Metrics, case_metrics, rig_with_coupling, study_configs
 from ..core.params import CONVENTIONS, RigParameters
 from ..core.run import simulate, summarize
@@ -38,6 +43,8 @@ from .paper_page import (
 )
 
 MIN_DURATION = 4.0
+#: Worker processes `lubrig paper` uses at most (its runs and the Floquet computation in parallel).
+PAPER_WORKERS = 2
 #: What `lubrig paper` writes into its folder (what --force replaces); the scan table and the
 #: recomputed scan are written by the command (cli/paper.py).
 PAGE_OUTPUTS = (PAGE, HTML_PAGE, FIGURES, "runs")
@@ -53,20 +60,20 @@ def _copy_small(source: Path, destination: Path) -> None:
         image.convert("RGB").quantize(colors=255, method=Image.Quantize.FASTOCTREE).save(destination)
 
 
-def _run_reading(
+def _run_case(
     coupling: str,
+    number: int,
     duration: float,
     out: Path,
     figures: Path | None,
     wavelet: bool,
-    progress: Callable[[float, str], None] | None = None,
-) -> tuple[Metrics, dict[int, dict[str, Any]], float]:
-    """Simulate and measure every study run of one reading; write run directories.
+) -> tuple[int, dict[str, Any], dict[str, Any]]:
+    """Simulate and measure one study run of one reading; write its run directory.
 
-    With `figures` (the presets' reading) each run directory holds the CSV, config.yaml,
+    With `figures` (the presets' reading) the run directory holds the CSV, config.yaml,
     summary.json and the embedded figures (time history, phase plot, wavelet.png with `wavelet`),
     copied to `figures` too; otherwise only config.yaml and summary.json are written (the page
-    quotes their numbers).
+    quotes their numbers). Returns (number, metrics, summary); runs in a worker process.
     """
     from ..app.analysis import DEFAULT_POLICY, analyze_displacement
     from ..app.rundir import write_json, write_run
@@ -74,52 +81,71 @@ def _run_reading(
     from ..figures.style import DPI
     from ..figures.timeseries import FIGURES as RUN_FIGURES
 
-    started = time.perf_counter()
-    metrics: Metrics = {}
-    summaries: dict[int, dict[str, Any]] = {}
-    for number, config in study_configs(coupling, duration).items():
-        trajectory = simulate(config)
-        summary = summarize(trajectory, config)
-        name = "stickslip" if number == STICKSLIP else f"case{number:02d}"
-        directory = out / name
-        if figures is not None:
-            analysis = None
-            if wavelet and number != STICKSLIP:  # app/analysis.py's one policy (second half)
-                analysis = analyze_displacement(
-                    trajectory.time,
-                    trajectory.displacement,
-                    config.sample_rate,
-                    config.band.fundamental_hz,
-                    DEFAULT_POLICY,
-                )
-            # figures/run.py's directory with the figures the page embeds (the stick-slip run's
-            # are left out: rendering is most of the page's cost)
-            if analysis is not None:
-                section = dict(analysis.summary_section(), figure=WAVELET_FIGURE)
-                summary = dict(summary, wavelet=section)
-            write_run(directory, config, trajectory, summary)
-            if number != STICKSLIP:
-                for figure in CASE_FIGURES:
-                    if figure in RUN_FIGURES:
-                        RUN_FIGURES[figure](
-                            trajectory, config.name, config.rig.coupling_name, config.rig
-                        ).savefig(directory / figure, dpi=DPI)
-            if analysis is not None:
-                write_wavelet_figure(directory, config, analysis)
-        else:
-            directory.mkdir(parents=True, exist_ok=True)
-            (directory / "config.yaml").write_text(config.to_yaml())
-            write_json(directory / "summary.json", summary)
-        metrics[number] = case_metrics(config, trajectory)
-        summaries[number] = summary
-        if progress is not None:
-            progress(config.duration, f"{coupling} {name}")
-        if figures is not None and number != STICKSLIP:
-            figures.mkdir(parents=True, exist_ok=True)
+    config = study_configs(coupling, duration)[number]
+    trajectory = simulate(config)
+    summary = summarize(trajectory, config)
+    name = "stickslip" if number == STICKSLIP else f"case{number:02d}"
+    directory = out / name
+    if figures is not None:
+        analysis = None
+        if wavelet and number != STICKSLIP:  # app/analysis.py's one policy (second half)
+            analysis = analyze_displacement(
+                trajectory.time,
+                trajectory.displacement,
+                config.sample_rate,
+                config.band.fundamental_hz,
+                DEFAULT_POLICY,
+            )
+        # figures/run.py's directory with the figures the page embeds (the stick-slip run's
+        # are left out: rendering is most of the page's cost)
+        if analysis is not None:
+            section = dict(analysis.summary_section(), figure=WAVELET_FIGURE)
+            summary = dict(summary, wavelet=section)
+        write_run(directory, config, trajectory, summary)
+        if number != STICKSLIP:
             for figure in CASE_FIGURES:
-                if (directory / figure).is_file():
-                    _copy_small(directory / figure, figures / f"{name}_{figure}")
-    return metrics, summaries, time.perf_counter() - started
+                if figure in RUN_FIGURES:
+                    RUN_FIGURES[figure](
+                        trajectory, config.name, config.rig.coupling_name, config.rig
+                    ).savefig(directory / figure, dpi=DPI)
+        if analysis is not None:
+            write_wavelet_figure(directory, config, analysis)
+    else:
+        directory.mkdir(parents=True, exist_ok=True)
+        (directory / "config.yaml").write_text(config.to_yaml())
+        write_json(directory / "summary.json", summary)
+    metrics = case_metrics(config, trajectory)
+    if figures is not None and number != STICKSLIP:
+        figures.mkdir(parents=True, exist_ok=True)
+        for figure in CASE_FIGURES:
+            if (directory / figure).is_file():
+                _copy_small(directory / figure, figures / f"{name}_{figure}")
+    return number, metrics, summary
+
+
+@contextlib.contextmanager
+def _single_threaded_blas() -> Iterator[None]:
+    """BLAS/OpenMP thread counts of 1 in the environment that spawned workers start with."""
+    names = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+    saved = {name: os.environ.get(name) for name in names}
+    os.environ.update(dict.fromkeys(names, "1"))
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
+def paper_workers() -> int:
+    """Worker processes for `lubrig paper`: the CPUs this process may use, at most PAPER_WORKERS."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cpus = os.cpu_count() or 1
+    return max(1, min(cpus, PAPER_WORKERS))
 
 
 def _scan_figures(cards: dict[float, list[Verdict]], scan: dict[float, Metrics], figures: Path) -> list[str]:
@@ -170,13 +196,16 @@ def run_paper(
     scan_source: str = "",
     force: bool = False,
     progress: ProgressCallback | None = None,
+    workers: int | None = None,
 ) -> Path:
     """Write the runs, every figure, comparison.md and comparison.html into out; return the .md.
 
     An existing non-empty out is refused unless force (PAGE_OUTPUTS are replaced then);
     progress(rig seconds done, detail) is called after every run.
     """
+    from ..app import analysis, rundir  # noqa: F401  (imported once here, inherited by forked workers)
     from ..app.rundir import prepare_output_dir
+    from ..figures import run, timeseries  # noqa: F401
     from ..figures.curves import plot_friction_curve, plot_stability_map, save_figure
     from .html import write_html_page
 
@@ -193,24 +222,53 @@ def run_paper(
     started = time.perf_counter()
     figures = out / FIGURES
     figures.mkdir(parents=True, exist_ok=True)
-    save_figure(plot_friction_curve(), figures / "friction_curve.png")
     preset = base_config(case=1).rig.coupling_name
     cards: dict[str, list[Verdict]] = {}
-    summaries: dict[str, dict[int, dict[str, Any]]] = {}
+    summaries: dict[str, dict[int, dict[str, Any]]] = {name: {} for name in CONVENTIONS}
+    metrics: dict[str, Metrics] = {name: {} for name in CONVENTIONS}
+    # every run of every reading (the presets' reading first: its figures cost most) and the
+    # Floquet computation in worker processes; the friction curve and stability maps meanwhile here
+    order = [preset, *(name for name in CONVENTIONS if name != preset)]
+    # spawned workers with one BLAS thread each: forked ones inherit the parent's OpenBLAS thread
+    # pool, and 2 workers × 2 spinning BLAS threads on 2 cores made the run slower than serial
+    # (docs/report.md)
+    with (
+        _single_threaded_blas(),
+        ProcessPoolExecutor(
+            workers or paper_workers(), mp_context=multiprocessing.get_context("spawn")
+        ) as pool,
+    ):
+        doubling_job = pool.submit(period_doubling)
+        jobs = {
+            pool.submit(
+                _run_case,
+                name,
+                number,
+                duration,
+                out / "runs" / name,
+                figures / name if name == preset else None,
+                name == preset,
+            ): name
+            for name in order
+            for number in study_configs(name, duration)
+        }
+        save_figure(plot_friction_curve(), figures / "friction_curve.png")
+        for name in CONVENTIONS:
+            save_figure(
+                plot_stability_map(rig_with_coupling(RigParameters(), name)),
+                figures / f"stability_map_{name}.png",
+            )
+        scan_cards = scan_scorecards(scan) if scan else {}
+        scan_figures = _scan_figures(scan_cards, scan, figures) if scan else []
+        for job in as_completed(jobs):
+            name = jobs[job]
+            number, metrics[name][number], summaries[name][number] = job.result()
+            label = "stickslip" if number == STICKSLIP else f"case{number:02d}"
+            advance(duration, f"{name} {label}")
+        doubling = doubling_job.result()
     for name in CONVENTIONS:
-        rig = rig_with_coupling(RigParameters(), name)
-        save_figure(plot_stability_map(rig), figures / f"stability_map_{name}.png")
-        metrics, summaries[name], _ = _run_reading(
-            name,
-            duration,
-            out / "runs" / name,
-            figures / name if name == preset else None,
-            wavelet=name == preset,
-            progress=advance,
-        )
-        cards[name] = scorecard(metrics, rig)
-    scan_cards = scan_scorecards(scan) if scan else {}
-    scan_figures = _scan_figures(scan_cards, scan, figures) if scan else []
+        summaries[name] = dict(sorted(summaries[name].items()))
+        cards[name] = scorecard(dict(sorted(metrics[name].items())), rig_with_coupling(RigParameters(), name))
     page = out / PAGE
     page.write_text(
         comparison_markdown(
@@ -222,6 +280,8 @@ def run_paper(
             preset,
             scan_figures,
             time.perf_counter() - started,
+            scan_cards=scan_cards,
+            doubling=doubling,
         )
     )
     write_html_page(page, "The study reproduced, statement by statement")

@@ -13,10 +13,12 @@ from typing import Any
 import numpy as np
 
 from ..app.selection import base_config
-from ..app.study import STATEMENTS, Verdict, scorecard
+from ..app.study import SPANS, STATEMENTS, Verdict, score_span, scorecard
+from ..app.study_floquet import PeriodDoubling
 from ..app.study_runs import CASES, Metrics, rig_with_coupling
 from ..core.params import CONVENTIONS, RigParameters
 from ..core.stability import critical_damping_ratio
+from .paper_floquet import doubling_section
 
 FIGURES = "study"  # figure directory next to the page (docs/study/ once copied)
 #: Every figure of a case, all shown on the page (figures/timeseries.py and wavelet.png).
@@ -38,17 +40,26 @@ MECHANISMS: dict[str, str] = {
     "the friction's negative slope adds coupling: 15 × case 5 for s → 0, eight times only for s "
     "in the band shown in the scan.",
     "C8a": "case 8 drives the band at 2 f0; a 10 Hz stick-slip response needs the forced 20 Hz orbit "
-    "to lose stability by period doubling (the 10 Hz growth rate in the scan crosses 0), which "
-    "happens only above s ≈ {s_pd:.3g}.",
-    "C8b": "10 Hz is the second-strongest peak from s ≈ 0.045, where the subharmonic near the "
-    "threshold decays slowly (critical slowing down), and the strongest once the 20 Hz orbit "
-    "period-doubles (s ≈ {s_pd:.3g}); above s ≈ 0.115 case 8 falls into full stick-slip at 4–8 Hz.",
+    "to lose stability by period doubling: a Floquet multiplier of the orbit passes −1 at "
+    "s = {s_pd:.4g} (computed by shooting, see 'Case 8's period doubling'); the period-doubled orbit "
+    "sticks for ≥ 5 % of the time (the criterion) from s = {s_c8a:.3g} of the scan on.",
+    "C8b": "10 Hz is among the two strongest peaks for s in {c8b_range} of the scan: from somewhat "
+    "below the computed period doubling (s = {s_pd:.4g}), where a multiplier near −1 lets the 10 Hz "
+    "transient decay slowly over the 20 s run (critical slowing down), until case 8 falls into "
+    "full stick-slip at lower frequencies.",
     "C10b": "the 10 Hz transient decays faster as s grows (the V2 plateau in zone 3 adds damping "
     "∝ s): below 10 % of its early level after less than 2.5 s for s ≳ 0.06; in the physical "
     "reading's stick-slip it never disappears.",
-    "C8c": "μ up to 0.16 needs v_rel near the friction peak (4e-12 m/s) without reversing; in the "
-    "scan case 8 either stays in zone 2–3 (μ ≤ {c8_mu_pd:.3g} at the period-doubled orbit) or "
-    "falls into full stick-slip where v_rel reverses and μ goes negative (min {c8_mu_full:.3g}).",
+    "C8c": "measured between samples (core/dense.py), case 8 reaches the friction peak (μ max "
+    "{c8_peak:.4g}) at every scanned s ≥ {c8_s_peak:.3g}: v_rel passes 4.08e-12 m/s at each stick "
+    "entry within a microsecond, which a 1 kHz record steps over (for s = {c8_missed} the sampled "
+    "μ max is at most {c8_sampled:.3g}; an earlier version of this page took that for 'μ stays ≤ "
+    "0.0258' and was wrong). What "
+    "fails is the lower bound: while stuck, μ is the static friction that holds the mass, on the "
+    "rising branch below the peak's velocity, its minimum {c8_min_lo:.3g} … {c8_min_hi:.3g} over "
+    "those s (the curve's minimum is 6.49e-3, the study's 6.5e-3), and from s = {c8_s_rev:.3g} v_rel "
+    "reverses in places (μ < 0). Below s = {c8_s_peak:.3g} the mass does not stick and μ stays in "
+    "zone 2–3 (max {c8_slide_max:.3g}).",
     "C9a": "the residual is small at every s, but the 10 Hz transient decays at about the structural "
     "rate ζ ω0 = 0.63 /s, so the band-period amplitude takes about 4 s, not under 3 s, to settle.",
     "C9b": "the 10 Hz transient decays at about ζ ω0 = 0.63 /s (falls to 10 % in about 4 s); "
@@ -120,6 +131,31 @@ def agreement_intervals(cards: dict[float, list[Verdict]], key: str) -> str:
     return ", ".join(parts) or "none"
 
 
+def _span_text(scan_cards: dict[float, list[Verdict]], best: list[float]) -> str:
+    """How the best score moves when C2a, C9b, C10b are taken over their choices' reasonable ranges."""
+    keys = ", ".join(SPANS)
+    parts = []
+    for key in SPANS:
+        at = [s for s in best if any(v.marginal for v in scan_cards[s] if v.key == key)]
+        if at:
+            where = f"s = {at[0]:.3g}" if len(at) == 1 else f"s = {at[0]:.3g} … {at[-1]:.3g}"
+            parts.append(f"{key} at {len(at)} of {len(best)} ({where})")
+    spans = [score_span(scan_cards[s]) for s in best]
+    top = max(high for _, high in score_span_all(scan_cards))
+    where = "; ".join(parts) or "none"
+    return (
+        f"Taking {keys} over the reasonable ranges of their choices (tolerance 20 … 30 %, reference "
+        f"level 0.03 … 0.3) these points score {min(low for low, _ in spans)} … "
+        f"{max(high for _, high in spans)} (marginal verdicts there: {where}); the scan at best {top} "
+        "when every marginal verdict goes for the study."
+    )
+
+
+def score_span_all(scan_cards: dict[float, list[Verdict]]) -> list[tuple[int, int]]:
+    """score_span at every scanned s."""
+    return [score_span(v) for v in scan_cards.values()]
+
+
 def _case_score(verdicts: list[Verdict]) -> int:
     """Statements agreed among those on the Table 1 runs (keys C…, M…)."""
     return sum(v.agree for v in verdicts if v.key[0] in "CM")
@@ -178,35 +214,71 @@ def _best_text(scan_cards: dict[float, list[Verdict]], total: int) -> str:
     return f"{best} of {total}, in {len(groups)} separate range(s) of the scan: " + "; ".join(parts) + "."
 
 
-def _numbers(scan: dict[float, Metrics] | None) -> dict[str, float]:
-    """Thresholds quoted by the mechanisms (from the linear theory and, where given, the scan)."""
+def _first(values: list[float], flags: list[bool]) -> float:
+    return next((s for s, flag in zip(values, flags, strict=True) if flag), math.nan)
+
+
+def _numbers(
+    scan: dict[float, Metrics] | None,
+    scan_cards: dict[float, list[Verdict]] | None = None,
+    doubling: PeriodDoubling | None = None,
+) -> dict[str, Any]:
+    """Thresholds quoted by the mechanisms (linear theory, case 8's Floquet threshold, the scan)."""
     unit = rig_with_coupling(RigParameters(), 1.0)
     zc_v1 = float(critical_damping_ratio(1e-7, unit))  # ζ_crit at s = 1 (∝ s)
     zc_edge = float(critical_damping_ratio(3e-8, unit))
     v = np.logspace(np.log10(3.05e-8), np.log10(1.34e-7), 200)
-    out = {
+    nan = math.nan
+    out: dict[str, Any] = {
         "zc_v1": zc_v1,
         "s_v1": 0.01 / zc_v1,
         "s_edge": 0.1 / zc_edge,
         "s_stab": 0.12 / float(np.max(critical_damping_ratio(v, unit))),
-        "s_pd": math.nan,
-        "c8_mu_pd": math.nan,
-        "c8_mu_full": math.nan,
+        "s_pd": doubling.threshold if doubling is not None else nan,
+        "s_pd_scan": nan,
+        "s_c8a": nan,
+        "c8b_range": "none",
+        "c8_missed": "none",
+        **dict.fromkeys(("c8_peak", "c8_s_peak", "c8_sampled", "c8_min_lo", "c8_min_hi"), nan),
+        **dict.fromkeys(("c8_s_rev", "c8_slide_max"), nan),
     }
     if scan:
         values = sorted(scan)
-        rates = [scan[s][8]["f0_growth_rate"] for s in values]
-        late = [scan[s][8]["f0_amplitude_late"] for s in values]
-        for i, s in enumerate(values):
-            if rates[i] is not None and rates[i] > 0 and late[i] > 1e-10:
-                out["s_pd"] = s
-                break
-        stick = [(s, scan[s][8]) for s in values]
-        pd = [m["mu_max"] for s, m in stick if m["mu_min"] > 0 and m["stick_fraction"] > 0]
-        full = [m["mu_min"] for s, m in stick if m["mu_min"] < 0]
-        out["c8_mu_pd"] = max(pd) if pd else math.nan
-        out["c8_mu_full"] = min(full) if full else math.nan
+        m8 = [scan[s][8] for s in values]
+        out["s_pd_scan"] = _first(
+            values,
+            [
+                m["f0_growth_rate"] is not None and m["f0_growth_rate"] > 0 and m["f0_amplitude_late"] > 1e-10
+                for m in m8
+            ],
+        )
+        if scan_cards:
+            out["s_c8a"] = _first(values, [_agrees(scan_cards[s], "C8a") for s in values])
+            out["c8b_range"] = agreement_intervals(scan_cards, "C8b")
+        if all(m.get("mu_max_dense") is not None for m in m8):
+            high = [float(m["mu_max_dense"]) for m in m8]
+            low = [float(m["mu_min_dense"]) for m in m8]
+            at_peak = [h >= 0.1 for h in high]
+            out["c8_s_peak"] = _first(values, at_peak)
+            peaked = [i for i, flag in enumerate(at_peak) if flag]
+            sliding = [i for i, flag in enumerate(at_peak) if not flag and values[i] < out["c8_s_peak"]]
+            if peaked:
+                out["c8_peak"] = max(high[i] for i in peaked)
+                missed = [i for i in peaked if float(m8[i]["mu_max"]) < 0.1]
+                if missed:
+                    out["c8_sampled"] = max(float(m8[i]["mu_max"]) for i in missed)
+                    out["c8_missed"] = f"{values[missed[0]]:.3g} … {values[missed[-1]]:.3g}"
+                positive = [low[i] for i in peaked if low[i] >= 0]
+                out["c8_min_lo"] = min(positive) if positive else nan
+                out["c8_min_hi"] = max(low[i] for i in peaked)
+            if sliding:
+                out["c8_slide_max"] = max(high[i] for i in sliding)
+            out["c8_s_rev"] = _first(values, [lo < 0 for lo in low])
     return out
+
+
+def _agrees(verdicts: list[Verdict], key: str) -> bool:
+    return next(v.agree for v in verdicts if v.key == key)
 
 
 def comparison_markdown(
@@ -219,13 +291,14 @@ def comparison_markdown(
     scan_figures: list[str],
     seconds: float,
     scan_cards: dict[float, list[Verdict]] | None = None,
+    doubling: PeriodDoubling | None = None,
 ) -> str:
     """The page: scores, scorecard per reading, scan, mechanisms, every case with its figures."""
     marks = readings()
     total = len(STATEMENTS)
-    numbers = _numbers(scan)
     if scan_cards is None:
         scan_cards = scan_scorecards(scan) if scan else {}
+    numbers = _numbers(scan, scan_cards, doubling)
     lines = [
         "# The study reproduced, statement by statement",
         "",
@@ -236,7 +309,10 @@ def comparison_markdown(
         "study says and the criterion, in `lubrig_ros/app/study.py`; the model as implemented: "
         "docs/model.md). "
         "Stationary measures use the second half of each run; spectral peaks are those of the "
-        "Hann-windowed amplitude spectrum of x there (strongest first, amplitudes, not powers). "
+        "Hann-windowed amplitude spectrum of x there (strongest first, amplitudes, not powers); μ's "
+        "extremes are also measured between the 1 kHz samples (stick transitions integrated again "
+        "with the project's integrator down to picoseconds, `lubrig_ros/core/dense.py`) and the "
+        "statements on μ that the study draws as a continuous curve (S4, C8c, M1, M2) use those. "
         f"Figures are in `{FIGURES}/` next to this page (every figure of every case of the presets' "
         "reading is shown below); the run directories (CSV, config.yaml, summary.json) are written "
         "to `runs/<reading>/caseNN/` beside the page by `lubrig paper --out`, not copied into docs. "
@@ -253,16 +329,17 @@ def comparison_markdown(
         "",
         "## Scores",
         "",
-        "| reading | γ | s | statements agreed | differs |",
-        "|---|---|---|---|---|",
+        "| reading | γ | s | statements agreed | over the choices' ranges | differs |",
+        "|---|---|---|---|---|---|",
     ]
     for name, verdicts in cards.items():
         gamma = rig_with_coupling(RigParameters(), name).velocity_factor
         missed = ", ".join(v.key for v in verdicts if not v.agree) or "—"
         bold = "**" if name == preset else ""
+        low, high = score_span(verdicts)
         lines.append(
             f"| {bold}{name}{bold} | {gamma:.4g} | {marks[name]:.4g} | "
-            f"{bold}{score(verdicts)} of {total}{bold} | {missed} |"
+            f"{bold}{score(verdicts)} of {total}{bold} | {low} … {high} | {missed} |"
         )
     if scan_cards:
         best = max(score(v) for v in scan_cards.values())
@@ -272,7 +349,8 @@ def comparison_markdown(
             f"Coupling scan ({len(scan_cards)} values of s from {min(scan_cards):.3g} to "
             f"{max(scan_cards):.3g}, {scan_source}): at most **{best} of {total}**, reached at s = "
             + ", ".join(f"{s:.3g}" for s in best_s)
-            + ".",
+            + ". "
+            + _span_text(scan_cards, best_s),
         ]
     preset_rig = base_config(case=1).rig
     lines += [
@@ -336,12 +414,15 @@ def comparison_markdown(
         f"for s = {numbers['s_edge']:.3g} (paper reading: s = {marks['paper']:.3g}); ζ_crit ∝ s.",
         f"- *Growth on the V1 plateau (cases 3, 6)* needs ζ_crit(1e-7 m/s) = {numbers['zc_v1']:.3g} s "
         f"> 0.01, i.e. s > {numbers['s_v1']:.3g}; the two statement groups cannot both hold.",
-        f"- *Case 8's 10 Hz:* the forced 20 Hz orbit period-doubles (10 Hz subharmonic grows) from "
-        f"s ≈ {numbers['s_pd']:.3g} in the scan; below it case 8 stays a small 20 Hz orbit.",
-        f"- *μ up to 0.16 in case 8* is not reached at any scanned s with μ staying positive "
-        f"(max {numbers['c8_mu_pd']:.3g} on the period-doubled orbit; full stick-slip reverses v_rel, "
-        f"μ min {numbers['c8_mu_full']:.3g}).",
+        f"- *Case 8's 10 Hz:* the forced 20 Hz orbit period-doubles at s = {numbers['s_pd']:.4g} "
+        "(a Floquet multiplier passes −1, computed below); below it case 8 settles to a small 20 Hz "
+        "orbit.",
+        f"- *μ up to 0.16 in case 8* is reached between samples at every scanned s ≥ "
+        f"{numbers['c8_s_peak']:.3g} (μ max {numbers['c8_peak']:.4g}, the friction peak), but the "
+        f"same stick phases take μ below 6.5e-3 (min {numbers['c8_min_lo']:.3g} … "
+        f"{numbers['c8_min_hi']:.3g}), so the study's range 6.5e-3 … 0.16 holds nowhere as a whole.",
         "",
+        *doubling_section(doubling, numbers),
         "## Measured values per reading",
         "",
     ]
@@ -353,7 +434,9 @@ def comparison_markdown(
             "|---|---|---|",
         ]
         lines += [
-            f"| {v.key} | {_cell(v.measured)} | {'agree' if v.agree else 'differs'} |" for v in verdicts
+            f"| {v.key} | {_cell(v.measured)} | {'agree' if v.agree else 'differs'}"
+            f"{' (marginal: flips within the range of its choice)' if v.marginal else ''} |"
+            for v in verdicts
         ]
         lines.append("")
     lines += [
