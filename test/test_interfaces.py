@@ -40,6 +40,7 @@ MESSAGES = (
     "WaveletFrame",
     "StabilityFlags",
     "FlowProgress",
+    "ShadowBlock",
 )
 #: The replay's services (lubrig_interfaces/srv): rosbag2's player has the same two.
 SERVICES = ("Seek", "SetRate")
@@ -130,6 +131,20 @@ def flow_progress():
     return m
 
 
+def shadow_block():
+    m = msg.ShadowBlock()
+    _stamp(m.header, 6.02)
+    m.sample_period, m.segment = 1e-3, 1
+    m.sample_index = [6001, 6002, 6004]
+    m.measured_displacement = [1.5e-6, 1.6e-6, 1.8e-6]
+    m.simulated_displacement = [1.4e-6, 1.65e-6, 1.8e-6]
+    m.band_velocity = [1e-4, 1e-4, 1.1e-4]
+    m.residual = [1e-7, -5e-8, 0.0]
+    m.residual_rms = [1e-7, 7.9e-8, 6.5e-8]
+    m.measured_rejected, m.unpaired = 2, 1
+    return m
+
+
 BUILDERS = {
     "FlowProgress": flow_progress,
     "RigState": rig_state,
@@ -137,6 +152,7 @@ BUILDERS = {
     "BandVelocityBlock": band_velocity_block,
     "WaveletFrame": wavelet_frame,
     "StabilityFlags": stability_flags,
+    "ShadowBlock": shadow_block,
 }
 
 
