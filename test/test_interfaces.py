@@ -24,6 +24,7 @@ from std_msgs.msg import Float64
 from lubrig_ros.app import cdr
 from lubrig_ros.app.plant_output import BLOCK_FIELDS
 from lubrig_ros.core.errors import InputError
+from lubrig_ros.core.schema import SHADOW_FIELDS
 
 pytestmark = pytest.mark.ros
 
@@ -447,3 +448,10 @@ def test_the_msg_files_carry_the_schema_s_sample_fields_in_order_with_their_unit
         k for k, kind in msg.RigStateBlock.get_fields_and_field_types().items() if kind.startswith("sequence")
     ]
     assert arrays == [*BLOCK_FIELDS, "lateness"]
+
+
+def test_shadow_block_arrays_are_the_schema_s_shadow_fields():
+    types = msg.ShadowBlock.get_fields_and_field_types()
+    arrays = [name for name, kind in types.items() if kind == "sequence<double>"]
+    assert arrays == list(SHADOW_FIELDS)
+    assert types["sample_index"] == "sequence<uint64>"
