@@ -17,6 +17,7 @@ from typing_extensions import override
 
 from .diagnostics import Status
 from .plant_diagnostics import HARDWARE_ID
+from .plant_output import PlantSample
 from .plant_state import PlantState
 from .plant_wallclock import WallClockRules
 from .shadow import ShadowPairing, ShadowSamples
@@ -34,6 +35,15 @@ class ShadowRules(WallClockRules):
         self.used_number: int | None = None  # of the band value of the sample in progress
         self.received_before = 0  # band values received before this segment (the first: none)
         self.rejected_reported = 0
+        # the session's per-sample sink, wrapped to keep the newest sample emitted (what a tick
+        # published: its index, displacement and band value), cheaper than asking the integrator
+        self.emitted: PlantSample | None = None
+        self._sink = session.on_sample
+        session.on_sample = self._on_sample
+
+    def _on_sample(self, sample: PlantSample) -> None:
+        self.emitted = sample
+        self._sink(sample)
 
     # ---- input ---------------------------------------------------------------------------
     @override
@@ -74,10 +84,10 @@ class ShadowRules(WallClockRules):
         s = self.s
         with s.lock:
             emitted = super().tick(deadline, late)
-            if emitted and self.used_number is not None:
-                sample = s.integrator.current().sample(0)
+            sample = self.emitted
+            if emitted and sample is not None and self.used_number is not None:
                 self.pairing.simulated(
-                    self.used_number, s.published - 1, sample.displacement, sample.band_velocity
+                    self.used_number, sample.sample_index, sample.displacement, sample.band_velocity
                 )
                 self.used_number = None
             return emitted
