@@ -26,34 +26,35 @@ N = 300  # band values sent ahead (0.3 s at 1 kHz)
 
 def test_pairs_by_number_whichever_comes_first():
     p = ShadowPairing(capacity=100)
-    p.simulated(0, 1, 1.0, 0.1)  # sample first, measured after
-    assert p.measured_value(1.5)
-    assert p.measured_value(2.0)  # measured first (number 1), its sample after
-    p.simulated(1, 2, 2.5, 0.2)
+    p.simulated(0, 1, 0.1, 0.01)  # sample first, measured after
+    assert p.measured_value(0.15)
+    assert p.measured_value(0.2)  # measured first (number 1), its sample after
+    p.simulated(1, 2, 0.25, 0.02)
     out = p.take()
     assert out is not None and p.take() is None
     assert out.sample_index.tolist() == [1, 2]
-    assert out.residual.tolist() == [0.5, -0.5]
-    assert out.residual_rms.tolist() == [0.5, 0.5]
-    assert out.measured.tolist() == [1.5, 2.0] and out.simulated.tolist() == [1.0, 2.5]
-    assert out.band_velocity.tolist() == [0.1, 0.2]
+    assert out.residual == pytest.approx([0.05, -0.05], abs=1e-15)
+    assert out.residual_rms == pytest.approx([0.05, 0.05], abs=1e-15)
+    assert out.measured.tolist() == [0.15, 0.2] and out.simulated.tolist() == [0.1, 0.25]
+    assert out.band_velocity.tolist() == [0.01, 0.02]
 
 
 def test_rejected_measured_values_keep_their_number_and_are_never_paired():
     p = ShadowPairing(capacity=100)
-    for number in range(4):
+    for number in range(5):
         p.simulated(number, number + 1, 0.0, 0.0)
-    assert p.measured_value(1.0)
+    assert p.measured_value(0.75)
     assert not p.measured_value(math.nan)
     assert not p.measured_value(math.inf)
-    assert p.measured_value(4.0)
+    assert not p.measured_value(1e200)  # beyond MEASURED_LIMIT: its square would overflow the RMS
+    assert p.measured_value(0.5)
     out = p.take()
     assert out is not None
-    assert out.sample_index.tolist() == [1, 4]  # numbers 0 and 3
-    assert out.measured.tolist() == [1.0, 4.0]
-    assert out.rejected == 2 and p.last_rejected == math.inf
+    assert out.sample_index.tolist() == [1, 5]  # numbers 0 and 4
+    assert out.measured.tolist() == [0.75, 0.5]
+    assert out.rejected == 3 and p.last_rejected == 1e200
     assert np.isfinite(out.residual_rms).all()
-    assert out.residual_rms[-1] == pytest.approx(math.sqrt((1.0 + 16.0) / 2))
+    assert out.residual_rms[-1] == pytest.approx(math.sqrt((0.75**2 + 0.5**2) / 2))
 
 
 def test_values_without_a_partner_are_dropped_after_capacity_numbers():
@@ -152,7 +153,7 @@ def test_float64_band_values_are_numbered_rejected_ones_included(rig):
     session.band_input(float(band[0]))
     session.band_input(math.nan)
     session.measured_input(float(x[0]) + 1e-9)
-    session.measured_input(1.0)  # answers the rejected band value: never paired
+    session.measured_input(0.5)  # answers the rejected band value: never paired
     _run(session, 5)
     pairs = session.shadow_take()
     assert pairs is not None and pairs.sample_index.tolist() == [1]

@@ -71,8 +71,8 @@ every pair of the segment so far. So the pairing does not depend on when the mes
 rig that sends its band ahead in blocks (the plant takes one value per tick, in order) and its
 measured values in the same order gets the residual of the very same band history. A value not
 paired within one second of numbers (a band value replaced before a tick took it, a skipped
-sample) is dropped and counted (`unpaired`); a measured value that is not finite is rejected
-and counted, never paired. A reset restarts both numberings and the RMS (the rig restarts its
+sample) is dropped and counted (`unpaired`); a measured value that is not finite or exceeds
+app/shadow.MEASURED_LIMIT (1 m) in magnitude is rejected and counted, never paired. A reset restarts both numberings and the RMS (the rig restarts its
 numbering on the new segment, as belt_drive does). The pairs made are handed to the node with
 every block (`shadow_take`: a ShadowBlock beside each state_block); the "shadow" status counts
 them. Without `shadow` the rules are WallClockRules unchanged.

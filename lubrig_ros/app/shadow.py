@@ -9,8 +9,10 @@ number of its message. Equal numbers pair, whichever arrives first; each pair gi
 measured − simulated and the running RMS of the residuals of the segment. `take` hands the pairs
 made since the last call to the publisher (one ShadowBlock per state_block), in sample order.
 
-A measured value that is not finite is rejected and counted (it keeps its number, so the values
-after it still pair correctly), never paired. Numbers waiting for their partner are kept for at
+A measured value that is not finite, or larger than MEASURED_LIMIT in magnitude (no rig of this
+kind moves a metre; such a value is a unit or encoding error, and its square would overflow the
+running RMS), is rejected and counted (it keeps its number, so the values after it still pair
+correctly), never paired. Numbers waiting for their partner are kept for at
 most `capacity` numbers behind the newest; older ones are dropped and counted (`unpaired`): a band
 value the plant never integrated (a Float64 replaced by a newer one before a tick took it, a
 skipped sample) leaves its measured value without a sample.
@@ -24,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+#: m: the largest |measured displacement| taken (module docstring).
+MEASURED_LIMIT = 1.0
 _EMPTY = np.zeros(0)
 _EMPTY_INDEX = np.zeros(0, dtype=np.int64)
 
@@ -94,7 +98,7 @@ class ShadowPairing:
         """The next measured displacement (m) from the rig; False if rejected (not a finite float)."""
         number = self.measured_count
         self.measured_count += 1
-        if not isinstance(value, float) or not math.isfinite(value):
+        if not isinstance(value, float) or not abs(value) <= MEASURED_LIMIT:  # NaN fails too
             self.rejected += 1
             self.last_rejected = value if isinstance(value, float) else math.nan
             return False
