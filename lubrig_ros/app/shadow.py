@@ -3,19 +3,20 @@
 In ``rig_in_loop`` with `shadow` on, the plant also takes the real rig's measured displacement
 (`measured_value`, one value per message) and pairs each with the simulated sample it answers;
 the pairing rule is documented once, in app/plant_session.py ("Shadow"). Band values and
-measured values are numbered in the order the rig sent them (`band_number`); a simulated sample
-carries the number of the band value it was integrated with (`simulated`), a measured value the
-number of its message. Equal numbers pair, whichever arrives first; each pair gives the residual
-measured − simulated and the running RMS of the residuals of the segment. `take` hands the pairs
-made since the last call to the publisher (one ShadowBlock per state_block), in sample order.
+measured values are numbered in the order the rig sent them (the band values by the rules of
+app/plant_shadow.py, the measured values here, by their place in the segment); a simulated
+sample carries the number of the band value it was integrated with (`simulated`). Equal numbers
+pair, whichever arrives first; each pair gives the residual measured − simulated and the running
+RMS of the residuals of the segment. `take` hands the pairs made since the last call to the
+publisher (one ShadowBlock per state_block), in sample order.
 
 A measured value that is not finite, or larger than MEASURED_LIMIT in magnitude (no rig of this
-kind moves a metre; such a value is a unit or encoding error, and its square would overflow the
+kind moves a metre: such a value is a unit or encoding error, and its square would overflow the
 running RMS), is rejected and counted (it keeps its number, so the values after it still pair
-correctly), never paired. Numbers waiting for their partner are kept for at
-most `capacity` numbers behind the newest; older ones are dropped and counted (`unpaired`): a band
-value the plant never integrated (a Float64 replaced by a newer one before a tick took it, a
-skipped sample) leaves its measured value without a sample.
+correctly), never paired. Numbers waiting for their partner are kept for at most `capacity`
+numbers behind the newest; older ones are dropped and counted (`unpaired`): a band value the
+plant never integrated (a Float64 replaced by a newer one before a tick took it, a skipped
+sample) leaves its measured value without a sample.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ class ShadowSamples:
     band_velocity: np.ndarray = field(default_factory=lambda: _EMPTY)  # m/s, of the simulated sample
     residual: np.ndarray = field(default_factory=lambda: _EMPTY)  # m, measured − simulated
     residual_rms: np.ndarray = field(default_factory=lambda: _EMPTY)  # m, running RMS in the segment
-    rejected: int = 0  # measured values rejected in the segment so far (not finite)
+    rejected: int = 0  # measured values rejected in the segment so far (MEASURED_LIMIT, NaN)
     unpaired: int = 0  # numbers dropped without a partner in the segment so far
 
     def __len__(self) -> int:
