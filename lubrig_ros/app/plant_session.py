@@ -56,26 +56,26 @@ samples before it are emitted, band input after it is counted (`ignored_after_en
 the run does not complete (the sim plant node then ends with EXIT_INTEGRATION_FAILED). Wall-clock
 modes: no output until a reset, which clears the fault (docs/nodes.md).
 
-Shadow (``rig_in_loop`` with the `shadow` setting; app/plant_shadow.py, app/shadow.py): the
-real rig also sends its measured displacement, one value per message (`measured_input`), and
-each is paired with the published sample it answers, by the band value both belong to. Band
-values are numbered as the rig sent them in the segment: a Float64 band value by its message's
-place (0, 1, 2, ...; rejected ones keep their number), a block's value i by the block's
-first_sample_index + i. Measured values are numbered by their message's place in the segment
-(rejected ones too). A published sample carries the number of the band value it was integrated
-with; a sample integrated with a held value (no new value came for it), and the initial state,
-carry none and are not paired. The measured value numbered n pairs with the sample integrated
-with band value n, whichever of the two arrives first (a measured value normally comes after
-its sample); the residual is measured − simulated displacement, and its running RMS is over
-every pair of the segment so far. So the pairing does not depend on when the messages arrive: a
-rig that sends its band ahead in blocks (the plant takes one value per tick, in order) and its
-measured values in the same order gets the residual of the very same band history. A value not
-paired within one second of numbers (a band value replaced before a tick took it, a skipped
-sample) is dropped and counted (`unpaired`); a measured value that is not finite or exceeds
-app/shadow.MEASURED_LIMIT (1 m) in magnitude is rejected and counted, never paired. A reset restarts both numberings and the RMS (the rig restarts its
-numbering on the new segment, as belt_drive does). The pairs made are handed to the node with
-every block (`shadow_take`: a ShadowBlock beside each state_block); the "shadow" status counts
-them. Without `shadow` the rules are WallClockRules unchanged.
+Shadow (``rig_in_loop`` with the `shadow` setting; app/plant_shadow.py, app/shadow.py): the real
+rig also sends its measured displacement, one value per message (`measured_input`), and each is
+paired with the published sample it answers, by the band value both belong to. Band values are
+numbered as the rig sent them in the segment: a Float64 band value by its message's place (0, 1,
+2, ...; rejected ones keep their number), a block's value i by the block's first_sample_index + i.
+Measured values are numbered by their message's place in the segment (rejected ones too). A
+published sample carries the number of the band value it was integrated with; a sample integrated
+with a held value (no new value came for it), and the initial state, carry none and are not
+paired. The measured value numbered n pairs with the sample integrated with band value n,
+whichever of the two arrives first (a measured value normally comes after its sample); the
+residual is measured − simulated displacement, and its running RMS is over every pair of the
+segment so far. So the pairing does not depend on when the messages arrive: a rig that sends its
+band ahead in blocks (the plant takes one value per tick, in order) and its measured values in the
+same order gets the residual of the very same band history. A value not paired within one second
+of numbers (a band value replaced before a tick took it, a skipped sample) is dropped and counted
+(`unpaired`); a measured value that is not finite or exceeds app/shadow.MEASURED_LIMIT (1 m) in
+magnitude is rejected and counted, never paired. A reset restarts both numberings and the RMS (the
+rig restarts its numbering on the new segment, as belt_drive does). The pairs made are handed to
+the node with every block (`shadow_take`: a ShadowBlock beside each state_block); the "shadow"
+status counts them. Without `shadow` the rules are WallClockRules unchanged.
 
 Thread safety: every public method takes the session's lock, so the real-time loop thread and the
 executor's callbacks may call it concurrently; sinks are called with the lock held (in order).
