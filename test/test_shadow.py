@@ -168,3 +168,27 @@ def test_without_shadow_the_rules_are_the_plain_wall_clock_ones(rig):
     assert [s.name for s in session.diagnostics()] == ["timing", "band input"]
     with pytest.raises(ValueError, match="shadow"):
         PlantSettings("rig_in_loop", shadow="yes")  # type: ignore[arg-type]
+
+
+def test_a_reset_restarts_the_numbering_and_the_rms(rig):
+    config, band, x = rig
+    session = _session(config, Sink(), shadow=True, max_lag=10.0)
+    session.band_block(band[:50], segment=0, first_sample_index=0)
+    for value in x[:50]:
+        session.measured_input(float(value) + 1e-6)  # a large residual in segment 0
+    _run(session, 60)
+    first = session.shadow_take()
+    assert first is not None and first.segment == 0 and first.residual_rms[-1] == pytest.approx(1e-6)
+    session.reset(config)
+    session.band_block(band[:50], segment=1, first_sample_index=0)  # the rig numbers from 0 again
+    for value in x[:50]:
+        session.measured_input(float(value))
+    _run(session, 60)
+    again = session.shadow_take()
+    assert again is not None and again.segment == 1
+    assert again.sample_index.tolist() == list(range(1, 51))
+    # (the plant restarts at equilibrium for the band value it held, the rig's x from band[0]'s:
+    # a residual of a few nm, but its RMS is the new segment's alone, not segment 0's 1e-6 m)
+    np.testing.assert_array_equal(again.residual, again.measured - again.simulated)
+    assert again.residual_rms[-1] == pytest.approx(np.sqrt(np.mean(again.residual**2)), rel=1e-12)
+    assert again.residual_rms[-1] < 1e-7
