@@ -192,3 +192,13 @@ def test_a_reset_restarts_the_numbering_and_the_rms(rig):
     np.testing.assert_array_equal(again.residual, again.measured - again.simulated)
     assert again.residual_rms[-1] == pytest.approx(np.sqrt(np.mean(again.residual**2)), rel=1e-12)
     assert again.residual_rms[-1] < 1e-7
+
+
+def test_the_shadow_topics_are_contract_topics_recorded_from_a_rig_in_loop_plant():
+    from lubrig_ros.app import contract
+
+    recorded = contract.recorded_topics("rig_in_loop")
+    for name in contract.SHADOW_TOPICS:
+        spec = contract.topic(name)  # KeyError if not in the contract
+        # the measured input is one message per sample: its values are recorded in shadow_block
+        assert (name in recorded) == (name not in contract.PER_SAMPLE_TOPICS), spec

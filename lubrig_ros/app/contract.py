@@ -446,6 +446,17 @@ PER_SAMPLE_TOPICS: tuple[str, ...] = (
 )
 
 
+#: Topics that exist only beside a rig_in_loop plant with `shadow` true (its input, its pairs and
+#: the analysis of the measured signal, which starts with the first pairs); no node has them else.
+SHADOW_TOPICS: tuple[str, ...] = (
+    "measured_displacement",
+    "shadow_block",
+    "measured/dominant_frequency",
+    "measured/wavelet_frame",
+    "measured/stability",
+)
+
+
 def recorded_topics(mode: str) -> tuple[str, ...]:
     """Relative names of the topics `lubrig rig` records in `mode` (every documented one in sim)."""
     names = tuple(t.name for t in TOPICS)
