@@ -15,6 +15,7 @@ import time
 import numpy as np
 import pytest
 
+from lubrig_ros.app import contract
 from lubrig_ros.app.plant_output import PlantBlock
 from lubrig_ros.app.plant_session import PlantSession, PlantSettings
 from lubrig_ros.app.shadow import ShadowPairing, measured_velocity
@@ -195,8 +196,6 @@ def test_a_reset_restarts_the_numbering_and_the_rms(rig):
 
 
 def test_the_shadow_topics_are_contract_topics_recorded_from_a_rig_in_loop_plant():
-    from lubrig_ros.app import contract
-
     recorded = contract.recorded_topics("rig_in_loop")
     for name in contract.SHADOW_TOPICS:
         spec = contract.topic(name)  # KeyError if not in the contract
