@@ -179,8 +179,10 @@ class PlantSession(PlantState):
         A new segment begins (`segment` + 1, `sample_index` and `published` 0). Stepped modes: the
         queue is dropped and the initial state is emitted again with the next band value (lockstep:
         at once); wall-clock modes: the buffered samples of the old segment are emitted, the rig
-        restarts at equilibrium for the band value it holds, the loop restarts its deadlines
-        (`restart_clock`) and emits the initial state; a `stop` fault is cleared.
+        restarts at equilibrium for the band value it holds (at rest, with a warning, when that
+        value is below the velocity the integrator resolves: a band at rest in all but name), the
+        loop restarts its deadlines (`restart_clock`) and emits the initial state; a `stop` fault
+        is cleared.
         """
         with self.lock:
             self.flush_block()
