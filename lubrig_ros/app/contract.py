@@ -385,7 +385,8 @@ TOPICS: tuple[Topic, ...] = (
         "plant, analysis",
         "plant 1 / diagnostics_period (1 Hz), analysis 1 / publish_period",
         "key/values",
-        "statuses named `<node FQN>: <group>`: plant `/lubrig/plant: timing`, `… band input`; "
+        "statuses named `<node FQN>: <group>`: plant `/lubrig/plant: timing`, `… band input` (shadow "
+        "mode: `… shadow`); "
         "analysis `/lubrig/analysis: linear`, `… oscillation`, `… stick`, `… resonance` "
         "(values = core.flags fields)",
     ),
