@@ -24,6 +24,7 @@ from std_msgs.msg import Float64
 from lubrig_ros.app import cdr
 from lubrig_ros.app.plant_output import BLOCK_FIELDS
 from lubrig_ros.core.errors import InputError
+from lubrig_ros.core.schema import SHADOW_FIELDS
 
 pytestmark = pytest.mark.ros
 
@@ -40,6 +41,7 @@ MESSAGES = (
     "WaveletFrame",
     "StabilityFlags",
     "FlowProgress",
+    "ShadowBlock",
 )
 #: The replay's services (lubrig_interfaces/srv): rosbag2's player has the same two.
 SERVICES = ("Seek", "SetRate")
@@ -130,6 +132,20 @@ def flow_progress():
     return m
 
 
+def shadow_block():
+    m = msg.ShadowBlock()
+    _stamp(m.header, 6.02)
+    m.sample_period, m.segment = 1e-3, 1
+    m.sample_index = [6001, 6002, 6004]
+    m.measured_displacement = [1.5e-6, 1.6e-6, 1.8e-6]
+    m.simulated_displacement = [1.4e-6, 1.65e-6, 1.8e-6]
+    m.band_velocity = [1e-4, 1e-4, 1.1e-4]
+    m.residual = [1e-7, -5e-8, 0.0]
+    m.residual_rms = [1e-7, 7.9e-8, 6.5e-8]
+    m.measured_rejected, m.unpaired = 2, 1
+    return m
+
+
 BUILDERS = {
     "FlowProgress": flow_progress,
     "RigState": rig_state,
@@ -137,6 +153,7 @@ BUILDERS = {
     "BandVelocityBlock": band_velocity_block,
     "WaveletFrame": wavelet_frame,
     "StabilityFlags": stability_flags,
+    "ShadowBlock": shadow_block,
 }
 
 
@@ -431,3 +448,10 @@ def test_the_msg_files_carry_the_schema_s_sample_fields_in_order_with_their_unit
         k for k, kind in msg.RigStateBlock.get_fields_and_field_types().items() if kind.startswith("sequence")
     ]
     assert arrays == [*BLOCK_FIELDS, "lateness"]
+
+
+def test_shadow_block_arrays_are_the_schema_s_shadow_fields():
+    types = msg.ShadowBlock.get_fields_and_field_types()
+    arrays = [name for name, kind in types.items() if kind == "sequence<double>"]
+    assert arrays == list(SHADOW_FIELDS)
+    assert types["sample_index"] == "sequence<uint64>"

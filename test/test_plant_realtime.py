@@ -163,3 +163,18 @@ def test_settings_of_the_lag_rule_are_checked():
     ):
         with pytest.raises(ValueError, match=next(iter(bad))):
             PlantSettings("realtime", **bad)
+
+
+@pytest.mark.parametrize("mode", ["realtime", "rig_in_loop"])
+def test_a_reset_holding_a_band_at_rest_in_all_but_name_restarts_at_rest(case1, mode):
+    """A held band value 0 < |v| below the integrator's resolution (e.g. -5e-324, a parameter
+    fuzz's) is a band at rest: a reset restarts there, with a warning, instead of raising."""
+    config, _, _ = case1
+    sink = Sink()
+    session = sink.session(config, mode, max_lag=10.0)
+    session.band_input(-5e-324)  # a good value for the input check (finite, within the limit)
+    session.latest_band = -5e-324  # held (realtime takes indexed values; the held one is this)
+    session.reset(config)
+    assert session.integrator.current().band_velocity[0] == 0.0
+    assert session.integrator.current().displacement[0] == 0.0  # equilibrium at rest: μ(0) = 0
+    assert any(level == "warning" and "restarted at rest" in text for level, text in sink.logs)

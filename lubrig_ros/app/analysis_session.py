@@ -180,10 +180,10 @@ class AnalysisSession:
 
     def samples_input(
         self,
-        displacement: Sequence[float],
-        velocity: Sequence[float],
-        band_velocity: Sequence[float],
-        relative_velocity: Sequence[float],
+        displacement: Sequence[float] | np.ndarray,
+        velocity: Sequence[float] | np.ndarray,
+        band_velocity: Sequence[float] | np.ndarray,
+        relative_velocity: Sequence[float] | np.ndarray,
         newest_time: float | None = None,
     ) -> int:
         """Consecutive plant samples (a RigStateBlock's arrays, or one RigState); how many were taken.

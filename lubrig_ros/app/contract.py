@@ -19,13 +19,15 @@ turn them into rclpy objects (nodes/interfaces.py).
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, replace
 from typing import Literal
 
 from lubrig_ros.core.errors import InputError
 
-from ..core.params import ParameterError
+from .names import NAMESPACE_MAX_LENGTH as NAMESPACE_MAX_LENGTH
+from .names import resolve as resolve
+from .names import validate_name as validate_name
+from .names import validate_namespace as validate_namespace
 from .node_parameters import ANALYSIS_PARAMETERS as ANALYSIS_PARAMETERS
 from .node_parameters import BAND_VELOCITY_LIMIT as BAND_VELOCITY_LIMIT
 from .node_parameters import BELT_DRIVE_PARAMETERS as BELT_DRIVE_PARAMETERS
@@ -60,8 +62,6 @@ from .node_parameters import plant_parameters as plant_parameters
 from .node_parameters import profile_parameter as profile_parameter
 
 DEFAULT_NAMESPACE = "/lubrig"
-#: Longest namespace ROS 2 accepts (rmw: RMW_NAMESPACE_MAX_NAME_LENGTH; measured with rclpy: 245).
-NAMESPACE_MAX_LENGTH = 245
 #: Modes whose rig time is the plant's own (advanced by band input), not the wall clock.
 STEPPED_MODES: tuple[str, ...] = ("sim", "lockstep")
 #: Exit status of a wall-clock plant (and `lubrig rig`) whose run did not hold real time.
@@ -69,71 +69,6 @@ EXIT_REAL_TIME_NOT_HELD = 3
 #: Exit status of a stepped-mode plant (sim, lockstep) whose run ended on a sample that could
 #: not be integrated (app/plant_session.py, "Integration failure"); `lubrig rig` ends with it.
 EXIT_INTEGRATION_FAILED = 4
-
-# ----------------------------------------------------------------------------------- names
-
-_TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
-
-
-def _name_problem(name: str, *, namespace: bool) -> str | None:
-    """Why `name` breaks ROS 2's rules for a namespace (or a topic/service name), else None."""
-    kind = "namespace" if namespace else "name"
-    if not name:
-        return f"a {kind} must not be empty"
-    if namespace and not name.startswith("/"):
-        return "a namespace must be absolute (start with '/')"
-    bad = sorted({c for c in name if not (c.isascii() and (c.isalnum() or c in "_/"))})
-    if bad:
-        return f"a {kind} may hold only letters, digits, '_' and '/' (not {''.join(bad)!r})"
-    if "//" in name:
-        return f"a {kind} must not contain '//'"
-    if name.endswith("/") and name != "/":
-        return f"a {kind} must not end with '/' (unless it is just '/')"
-    if not namespace and name == "/":
-        return "a name must not be just '/'"
-    tokens = [t for t in name.split("/") if t]
-    if any(not _TOKEN.match(t) for t in tokens):
-        return f"no token of a {kind} may start with a digit"
-    if namespace and len(name) > NAMESPACE_MAX_LENGTH:
-        return f"a namespace may have at most {NAMESPACE_MAX_LENGTH} characters (has {len(name)})"
-    return None
-
-
-def validate_namespace(namespace: str, what: str = "namespace") -> str:
-    """Return `namespace` if it is a valid ROS 2 namespace, else ParameterError (a ValueError).
-
-    ROS 2's rules (rmw_validate_namespace; test/test_contract.py checks against rclpy's own
-    validator): absolute, only letters, digits, '_' and '/', no '//', no trailing '/' (except
-    the root namespace '/'), no token starting with a digit, at most 245 characters. So
-    '/lubrig', '/rig_2' and '/' are valid; '/rig-2', 'lubrig', '/lubrig/' and '/2rig' are not.
-    """
-    if not isinstance(namespace, str):
-        raise ParameterError(f"{what}={namespace!r} is not valid; expected a string such as '/lubrig'")
-    problem = _name_problem(namespace, namespace=True)
-    if problem:
-        raise ParameterError(
-            f"{what}={namespace!r} is not valid: {problem}; expected an absolute ROS name such as "
-            "'/lubrig' or '/rig_2'"
-        )
-    return namespace
-
-
-def validate_name(name: str, what: str = "name") -> str:
-    """Return a topic or service name (relative or absolute) if ROS 2 accepts it, else ParameterError."""
-    problem = _name_problem(name, namespace=False) if isinstance(name, str) else "not a string"
-    if problem:
-        raise ParameterError(f"{what}={name!r} is not valid: {problem}")
-    return name
-
-
-def resolve(namespace: str, name: str) -> str:
-    """Absolute name of `name` in `namespace` (absolute names are kept), as rcl resolves it."""
-    validate_name(name)
-    if name.startswith("/"):
-        return name
-    namespace = validate_namespace(namespace)
-    return f"{'' if namespace == '/' else namespace}/{name}"
-
 
 # ------------------------------------------------------------------------------------- QoS
 
@@ -298,6 +233,26 @@ TOPICS: tuple[Topic, ...] = (
         "friction coefficient μ(v_rel) (optional, for simple tools)",
     ),
     _t(
+        "measured_displacement",
+        "std_msgs/msg/Float64",
+        STREAM_QOS,
+        "external rig software (rig_in_loop, plant shadow true)",
+        OUTPUT_RATE,
+        "m",
+        "the real rig's measured displacement x, one sample per message, each after the band "
+        "value it answers (pairing: docs/fitting.md)",
+    ),
+    _t(
+        "shadow_block",
+        "lubrig_interfaces/msg/ShadowBlock",
+        BLOCK_QOS,
+        "plant (rig_in_loop, shadow true)",
+        "one per state_block with new pairs",
+        "m",
+        "measured and simulated displacement per paired sample (sample_index), residual measured − "
+        "simulated and its running RMS over the segment",
+    ),
+    _t(
         "/clock",
         "rosgraph_msgs/msg/Clock",
         STREAM_QOS,
@@ -397,13 +352,41 @@ TOPICS: tuple[Topic, ...] = (
         "envelope growth flag",
     ),
     _t(
+        "measured/dominant_frequency",
+        "std_msgs/msg/Float64",
+        ANALYSIS_QOS,
+        "analysis (shadow_block arriving)",
+        "1 / publish_period",
+        "Hz",
+        "dominant_frequency of the real rig's measured displacement",
+    ),
+    _t(
+        "measured/wavelet_frame",
+        "lubrig_interfaces/msg/WaveletFrame",
+        ANALYSIS_QOS,
+        "analysis (shadow_block arriving)",
+        "1 / publish_period",
+        "1",
+        "wavelet_frame of the real rig's measured displacement",
+    ),
+    _t(
+        "measured/stability",
+        "lubrig_interfaces/msg/StabilityFlags",
+        ANALYSIS_QOS,
+        "analysis (shadow_block arriving)",
+        "1 / publish_period",
+        "SI",
+        "stability flags of the measured displacement (stick: v_rel from its backward differences)",
+    ),
+    _t(
         "/diagnostics",
         "diagnostic_msgs/msg/DiagnosticArray",
         ANALYSIS_QOS,
         "plant, analysis",
         "plant 1 / diagnostics_period (1 Hz), analysis 1 / publish_period",
         "key/values",
-        "statuses named `<node FQN>: <group>`: plant `/lubrig/plant: timing`, `… band input`; "
+        "statuses named `<node FQN>: <group>`: plant `/lubrig/plant: timing`, `… band input` (shadow "
+        "mode: `… shadow`); "
         "analysis `/lubrig/analysis: linear`, `… oscillation`, `… stick`, `… resonance` "
         "(values = core.flags fields)",
     ),
@@ -460,6 +443,18 @@ PER_SAMPLE_TOPICS: tuple[str, ...] = (
     "displacement",
     "velocity",
     "friction_coefficient",
+    "measured_displacement",
+)
+
+
+#: Topics that exist only beside a rig_in_loop plant with `shadow` true (its input, its pairs and
+#: the analysis of the measured signal, which starts with the first pairs); no node has them else.
+SHADOW_TOPICS: tuple[str, ...] = (
+    "measured_displacement",
+    "shadow_block",
+    "measured/dominant_frequency",
+    "measured/wavelet_frame",
+    "measured/stability",
 )
 
 

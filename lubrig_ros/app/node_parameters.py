@@ -19,6 +19,8 @@ from .parameter_types import NodeParameter as NodeParameter
 from .parameter_types import ParameterType as ParameterType
 from .parameter_types import field_parameter as _field
 from .parameter_types import param as _p
+from .profile_parameters import PROFILE_PARAMETERS as PROFILE_PARAMETERS
+from .profile_parameters import profile_parameter as profile_parameter
 
 MODES: tuple[str, ...] = ("sim", "lockstep", "realtime", "rig_in_loop")
 #: What a wall-clock plant does once it is more than max_lag behind real time (app/plant_session.py).
@@ -336,52 +338,19 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
             "message per sample (about 3 x 37 us per sample for the plant, and the same per "
             "subscriber: sim mode falls from block to sample speed)",
         ),
+        _p(
+            "shadow",
+            "bool",
+            False,
+            "rig_in_loop: also take the real rig's measured displacement (measured_displacement) "
+            "and publish shadow_block, its residual against the model per sample and their running "
+            "RMS (pairing: docs/fitting.md); ignored, with a warning, in the other modes",
+        ),
     )
 
 
 #: The plant's parameters with the default (junction-kinetics) law (plant_parameters(law) for another).
 PLANT_PARAMETERS: tuple[NodeParameter, ...] = plant_parameters(DEFAULT_LAW)
-
-
-def _profile_parameters() -> tuple[NodeParameter, ...]:
-    """profile.kind, every numeric field of the band kinds (ranges: core/schema.py) and profile.path."""
-    kinds = " | ".join(schema.BAND_FIELDS)
-    out = [
-        _p(
-            "profile.kind",
-            "string",
-            None,
-            f"band profile kind ({kinds}); run time",
-            read_only=False,
-            from_config="band.kind",
-        )
-    ]
-    for kind, table in schema.BAND_FIELDS.items():
-        for name, spec in table.items():
-            if kind == "table":
-                continue  # a table is given by its CSV (profile.path)
-            text = f"{kind} profile: {spec.symbol + ', ' if spec.symbol else ''}{spec.description}; run time"
-            out.append(_field(f"profile.{name}", spec, text, read_only=False, from_config=f"band.{name}"))
-    out.append(
-        _p(
-            "profile.path",
-            "string",
-            None,
-            "table profile: CSV of time_s,band_velocity_m_s (rows checked as the table's); run time",
-            read_only=False,
-            from_config="band.path",
-        )
-    )
-    return tuple(out)
-
-
-#: belt_drive's band profile parameters (core.profiles kinds; validated by their classes).
-PROFILE_PARAMETERS: tuple[NodeParameter, ...] = _profile_parameters()
-
-
-def profile_parameter(name: str) -> NodeParameter | None:
-    """The contract's `profile.<name>` parameter, None for a field of a kind outside core/schema.py."""
-    return next((p for p in PROFILE_PARAMETERS if p.name == f"profile.{name}"), None)
 
 
 BELT_DRIVE_PARAMETERS: tuple[NodeParameter, ...] = (

@@ -56,6 +56,27 @@ samples before it are emitted, band input after it is counted (`ignored_after_en
 the run does not complete (the sim plant node then ends with EXIT_INTEGRATION_FAILED). Wall-clock
 modes: no output until a reset, which clears the fault (docs/nodes.md).
 
+Shadow (``rig_in_loop`` with the `shadow` setting; app/plant_shadow.py, app/shadow.py): the real
+rig also sends its measured displacement, one value per message (`measured_input`), and each is
+paired with the published sample it answers, by the band value both belong to. Band values are
+numbered as the rig sent them in the segment: a Float64 band value by its message's place (0, 1,
+2, ...; rejected ones keep their number), a block's value i by the block's first_sample_index + i.
+Measured values are numbered by their message's place in the segment (rejected ones too). A
+published sample carries the number of the band value it was integrated with; a sample integrated
+with a held value (no new value came for it), and the initial state, carry none and are not
+paired. The measured value numbered n pairs with the sample integrated with band value n,
+whichever of the two arrives first (a measured value normally comes after its sample); the
+residual is measured − simulated displacement, and its running RMS is over every pair of the
+segment so far. So the pairing does not depend on when the messages arrive: a rig that sends its
+band ahead in blocks (the plant takes one value per tick, in order) and its measured values in the
+same order gets the residual of the very same band history. A value not paired within one second
+of numbers (a band value replaced before a tick took it, a skipped sample) is dropped and counted
+(`unpaired`); a measured value that is not finite or exceeds app/shadow.MEASURED_LIMIT (1 m) in
+magnitude is rejected and counted, never paired. A reset restarts both numberings and the RMS (the
+rig restarts its numbering on the new segment, as belt_drive does). The pairs made are handed to
+the node with every block (`shadow_take`: a ShadowBlock beside each state_block); the "shadow"
+status counts them. Without `shadow` the rules are WallClockRules unchanged.
+
 Thread safety: every public method takes the session's lock, so the real-time loop thread and the
 executor's callbacks may call it concurrently; sinks are called with the lock held (in order).
 
@@ -89,8 +110,10 @@ from .plant_config import (
 from .plant_diagnostics import STALL_S, diagnostics
 from .plant_modes import LockstepRules, ModeRules, SteppedRules
 from .plant_output import BeltTravel, PlantBlock, PlantSample
+from .plant_shadow import ShadowRules
 from .plant_state import PlantSettings, PlantState
 from .plant_wallclock import IndexedRules, WallClockRules
+from .shadow import ShadowSamples
 
 __all__ = [
     "CONFIG_PARAMETERS",
@@ -122,7 +145,9 @@ class PlantSession(PlantState):
 
     @functools.cached_property
     def rules(self) -> ModeRules:
-        """The rules of this session's mode (MODE_RULES), made at first use."""
+        """The rules of this session's mode (MODE_RULES; rig_in_loop with shadow: ShadowRules)."""
+        if self.settings.shadow and self.mode == "rig_in_loop":
+            return ShadowRules(self)
         return MODE_RULES[self.mode](self)
 
     @property
@@ -154,8 +179,10 @@ class PlantSession(PlantState):
         A new segment begins (`segment` + 1, `sample_index` and `published` 0). Stepped modes: the
         queue is dropped and the initial state is emitted again with the next band value (lockstep:
         at once); wall-clock modes: the buffered samples of the old segment are emitted, the rig
-        restarts at equilibrium for the band value it holds, the loop restarts its deadlines
-        (`restart_clock`) and emits the initial state; a `stop` fault is cleared.
+        restarts at equilibrium for the band value it holds (at rest, with a warning, when that
+        value is below the velocity the integrator resolves: a band at rest in all but name), the
+        loop restarts its deadlines (`restart_clock`) and emits the initial state; a `stop` fault
+        is cleared.
         """
         with self.lock:
             self.flush_block()
@@ -235,6 +262,18 @@ class PlantSession(PlantState):
                 self.last_rejected = float(bad[-1])
             return self.rules.band_values(band, good, segment, first_sample_index, now)
 
+    def measured_input(self, value: float) -> bool:
+        """Shadow: the rig's next measured displacement (m); False if rejected or not in shadow."""
+        with self.lock:
+            rules = self.rules
+            return isinstance(rules, ShadowRules) and rules.measured_value(value)
+
+    def shadow_take(self) -> ShadowSamples | None:
+        """Shadow: the pairs made since the last call, in sample order (None: none, or no shadow)."""
+        with self.lock:
+            rules = self.rules
+            return rules.take() if isinstance(rules, ShadowRules) else None
+
     # ---- the modes' entry points ---------------------------------------------------------
     def emit_initial(self) -> None:
         """Emit the current state once (sim: done with the first block; other modes: at start)."""
@@ -290,4 +329,7 @@ class PlantSession(PlantState):
     def diagnostics(self) -> list[Status]:
         """The timing and band-input statuses (app/plant_diagnostics); a new 'since last report' count."""
         with self.lock:
-            return diagnostics(self, self.rules, stale=self.stale(), stalled=self.stalled())
+            statuses = diagnostics(self, self.rules, stale=self.stale(), stalled=self.stalled())
+            if isinstance(self.rules, ShadowRules):
+                statuses.append(self.rules.status())
+            return statuses

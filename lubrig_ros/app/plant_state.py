@@ -54,6 +54,7 @@ class PlantSettings:
     lag_policy: str = DEFAULT_LAG_POLICY
     max_lag: float = DEFAULT_MAX_LAG
     output_block_length: int = DEFAULT_OUTPUT_BLOCK_LENGTH
+    shadow: bool = False  # rig_in_loop: pair the rig's measured displacement (app/plant_shadow.py)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -66,6 +67,8 @@ class PlantSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ParameterError(f"{name}={value!r} is not valid; expected an integer >= 1")
+        if not isinstance(self.shadow, bool):
+            raise ParameterError(f"shadow={self.shadow!r} is not valid; expected true or false")
         for name in ("band_velocity_limit", "stale_timeout", "max_lag"):
             value = getattr(self, name)
             if not (isinstance(value, float | int) and math.isfinite(value) and value > 0.0):

@@ -19,6 +19,7 @@ from collections.abc import Callable
 import numpy as np
 from typing_extensions import override
 
+from ..core.errors import InputError
 from .plant_modes import ModeRules
 from .plant_state import PlantState
 from .timing import DeadlineLoop, tight_timer_slack
@@ -135,7 +136,13 @@ class WallClockRules(ModeRules):
         s = self.s
         self.queue.clear()
         self.pending_band = self.pending_recv = None
-        s.integrator.reset(band_velocity=s.latest_band)
+        try:
+            s.integrator.reset(band_velocity=s.latest_band)
+        except InputError as exc:  # 0 < |held value| below what the integrator resolves
+            # a band at rest in all but name (core.integrator): the rig restarts at rest; the held
+            # value stays the band input until the next one comes
+            s.integrator.reset(band_velocity=0.0)
+            s.log("warning", f"reset: restarted at rest, not at the held band value: {exc}")
         s.restart_clock = True
 
     @override

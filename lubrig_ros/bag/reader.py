@@ -29,6 +29,7 @@ from lubrig_ros.bag.layout import RUN_CONFIG_KEY, find_mcap, typestore
 from lubrig_ros.bag.mcapscan import Channel, Message, ScanResult, Schema, scan
 from lubrig_ros.bag.meta import SCHEMA_ENCODING
 from lubrig_ros.bag.verify import inspect_bag, verify_bag
+from lubrig_ros.core import schema
 
 
 @dataclass
@@ -244,7 +245,14 @@ RIG_STATE_FIELDS: tuple[str, ...] = BLOCK_FIELDS_OF_PLANT
 RIG_STATE = "lubrig_interfaces/msg/RigState"
 RIG_STATE_BLOCK = "lubrig_interfaces/msg/RigStateBlock"
 BAND_VELOCITY_BLOCK = "lubrig_interfaces/msg/BandVelocityBlock"
-BLOCK_FIELDS = {RIG_STATE_BLOCK: RIG_STATE_FIELDS, BAND_VELOCITY_BLOCK: ("band_velocity",)}
+SHADOW_BLOCK = "lubrig_interfaces/msg/ShadowBlock"
+#: ShadowBlock's per-pair arrays (each pair has its own sample_index: a block need not be consecutive).
+SHADOW_FIELDS: tuple[str, ...] = tuple(schema.SHADOW_FIELDS)
+BLOCK_FIELDS = {
+    RIG_STATE_BLOCK: RIG_STATE_FIELDS,
+    BAND_VELOCITY_BLOCK: ("band_velocity",),
+    SHADOW_BLOCK: SHADOW_FIELDS,
+}
 
 
 def _stamp_s(stamp: Any) -> float:
@@ -260,6 +268,11 @@ def _block_samples(msgtype: str, msg: object) -> dict[str, np.ndarray]:
     for name, col in cols.items():
         if col.size != n:
             raise BagError(f"{msgtype}: field {name} has {col.size} samples, expected {n}")
+    if msgtype == SHADOW_BLOCK:  # pairs: their own indices, stamped with the block's publication
+        cols["stamp"] = np.full(n, _stamp_s(msg.header.stamp))  # type: ignore[attr-defined]
+        cols["sample_index"] = np.asarray(msg.sample_index, dtype=np.int64).reshape(n)  # type: ignore[attr-defined]
+        cols["segment"] = np.full(n, int(msg.segment), dtype=np.int64)  # type: ignore[attr-defined]
+        return cols
     first = int(msg.first_sample_index)  # type: ignore[attr-defined]
     cols["stamp"] = _stamp_s(msg.header.stamp) + np.arange(n) * float(msg.sample_period)  # type: ignore[attr-defined]
     cols["sample_index"] = np.arange(first, first + n, dtype=np.int64)
@@ -327,7 +340,9 @@ def read_arrays(bag: str | Path, topics: Iterable[str] | None = None) -> dict[st
     flattened into one entry per SAMPLE (``t`` = the message's log time + i · sample_period, the
     same fields as RigState / ``band_velocity``, ``stamp`` per sample; a RigStateBlock adds
     ``lateness`` (s, NaN without realtime timing) and ``skipped`` (the block's declared skip on
-    its first sample, see _block_timing)); legacy JointState gives
+    its first sample, see _block_timing)); a ShadowBlock topic is flattened into one entry per
+    pair (SHADOW_FIELDS, its own ``sample_index``, ``segment``, ``stamp`` = the block's); legacy
+    JointState gives
     ``stamp``, ``position``, ``velocity``, ``effort`` (first joint); Clock gives ``clock`` (s);
     other types give ``message`` (an object array of rosbags messages).
     """

@@ -40,6 +40,7 @@ __all__ = [
     "RIG_OVERRIDES",
     "SAMPLE_FIELDS",
     "SAMPLE_UNITS",
+    "SHADOW_FIELDS",
     "SIMULATION_FIELDS",
     "FieldSpec",
     "RigField",
@@ -370,9 +371,22 @@ SAMPLE_FIELDS: tuple[SampleField, ...] = (
     SampleField("normal_force", "N", "N", "normal force pressing the mass on the band", "normal_force"),
 )
 
+#: Shadow mode's per-pair arrays (ShadowBlock, in its field order) and their SI units: the real
+#: rig's measured displacement, the plant's sample it is paired with, measured − simulated and the
+#: running RMS of that residual over the segment (app/shadow.py).
+SHADOW_FIELDS: dict[str, str] = {
+    "measured_displacement": "m",
+    "simulated_displacement": "m",
+    "band_velocity": "m/s",
+    "residual": "m",
+    "residual_rms": "m",
+}
+
 #: SI unit of every per-sample column a bag or a table holds, by name ('1' for a pure number):
-#: the SAMPLE_FIELDS, a sample's rig time and RigStateBlock's realtime lateness.
-SAMPLE_UNITS: dict[str, str] = {f.name: f.unit for f in SAMPLE_FIELDS} | {"lateness": "s", "time": "s"}
+#: the SAMPLE_FIELDS, a sample's rig time, RigStateBlock's realtime lateness and SHADOW_FIELDS.
+SAMPLE_UNITS: dict[str, str] = (
+    {f.name: f.unit for f in SAMPLE_FIELDS} | SHADOW_FIELDS | {"lateness": "s", "time": "s"}
+)
 
 
 def unit_column(name: str, unit: str) -> str:

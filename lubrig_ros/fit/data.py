@@ -10,7 +10,12 @@ Two sources, both SI units:
   displacement and friction coefficient from the recorded state stream, the band velocity from the
   recorded band stream ``<ns>/band_velocity_block`` (matched by rig time; the initial sample,
   which belt_drive does not send, from the state stream's own band value), read with the one bag
-  reader (bag.reader.Bag).
+  reader (bag.reader.Bag). A bag of a rig_in_loop plant in shadow mode (a ``<ns>/shadow_block``
+  stream with pairs) is a real rig's record instead: the measured displacement is the pairs'
+  ``measured_displacement`` and the band velocity the state stream's ``band_velocity`` of the same
+  sample index (the value the plant integrated, which is the rig's band value the pair belongs to;
+  app/plant_session.py, "Shadow"), over the longest run of consecutive paired samples of the first
+  segment; the state stream's displacement and μ are the model's and are not used.
 
 Samples must be uniform in time (the integrator's output grid): a CSV whose time steps vary by
 more than 1e-6 of a step is refused, naming the first bad row.
@@ -167,7 +172,7 @@ def _numbers(row: list[str], where: dict[str, int], number: int, source: str) ->
 
 
 def _kept(topic: str) -> bool:
-    return topic.endswith("/state_block") or topic.endswith("/band_velocity_block")
+    return topic.endswith(("/state_block", "/band_velocity_block", "/shadow_block"))
 
 
 def load_bag(path: Path) -> MeasuredData:
@@ -184,6 +189,10 @@ def load_bag(path: Path) -> MeasuredData:
             )
         state_topic = states[0]
         band_topic = state_topic[: -len("state_block")] + "band_velocity_block"
+        shadow_topic = state_topic[: -len("state_block")] + "shadow_block"
+        if shadow_topic in topics:
+            arrays = bag.arrays([state_topic, shadow_topic])
+            return _shadow_record(arrays[state_topic], arrays[shadow_topic], source)
         arrays = bag.arrays([state_topic, *([band_topic] if band_topic in topics else [])])
     except BagError as exc:
         raise InputError(str(exc)) from None
@@ -210,6 +219,37 @@ def load_bag(path: Path) -> MeasuredData:
         )
     time = (index - index[0]) * (round(period * 1e9) / 1e9)  # stamps are on the nanosecond grid
     return checked(time, band, pick("displacement"), pick("friction_coefficient"), source)
+
+
+def _shadow_record(state: TopicArrays, shadow: TopicArrays, source: str) -> MeasuredData:
+    """Shadow mode: the pairs' measured displacement over the state stream's band (module docstring)."""
+    segment = int(np.asarray(shadow["segment"], np.int64).min())
+    mine = np.asarray(shadow["segment"], np.int64) == segment
+    index, unique = np.unique(np.asarray(shadow["sample_index"], np.int64)[mine], return_index=True)
+    measured = np.asarray(shadow["measured_displacement"], float)[mine][unique]
+    breaks = np.flatnonzero(np.diff(index) != 1) + 1
+    runs = np.split(np.arange(index.size), breaks)
+    longest = max(runs, key=len)
+    index, measured = index[longest], measured[longest]
+    in_segment = np.asarray(state["segment"], np.int64) == segment
+    state_index = np.asarray(state["sample_index"], np.int64)[in_segment]
+    state_band = np.asarray(state["band_velocity"], float)[in_segment]
+    band_of = dict(zip(state_index.tolist(), state_band.tolist(), strict=True))
+    missing = [k for k in index.tolist() if k not in band_of]
+    if missing:
+        raise InputError(
+            f"{source}: the state stream has no sample {missing[0]} of segment {segment}, which the "
+            "shadow stream pairs; expected every paired sample recorded"
+        )
+    band = np.array([band_of[k] for k in index.tolist()])
+    stamps = np.asarray(state["stamp"], float)[in_segment]
+    period = float(np.median(np.diff(np.sort(stamps)))) if stamps.size > 1 else 0.0
+    if not period > 0.0:
+        raise InputError(
+            f"{source}: the state stream's stamps do not advance; expected one sample period apart"
+        )
+    time = (index - index[0]) * (round(period * 1e9) / 1e9)
+    return checked(time, band, measured, None, f"{source} (shadow: measured displacement)")
 
 
 def _recorded_band(

@@ -15,7 +15,15 @@ stamp of the plant's samples, not the node clock: they hold with --no-clock and 
 rig has run on meanwhile; before the first sample the node clock), without it (realtime) the node
 clock at publication; WaveletFrame's start/end are the stamps of its first and last column.
 The rig comes from case/config_file and is replaced by the plant's latched <ns>/run_config when
-it arrives. Topics, QoS, parameters: app/contract.py.
+it arrives.
+
+Shadow (a rig_in_loop plant with `shadow` true): once <ns>/shadow_block (ShadowBlock) arrives, a
+second session analyses the real rig's measured displacement the same way, and every update
+also publishes <ns>/measured/dominant_frequency, measured/wavelet_frame and measured/stability
+beside the model's (so an instability growing on the rig shows next to the model's zones). The
+rig sends no velocity: ẋ is the measured displacement's backward difference over consecutive
+sample indices (app/shadow.measured_velocity), and v_rel = v_band − γ ẋ of the run's γ. Without
+shadow blocks nothing of this exists (no publisher, no session). Topics, QoS, parameters: app/contract.py.
 """
 
 from __future__ import annotations
@@ -27,14 +35,16 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from sensor_msgs.msg import Image
 from std_msgs.msg import Bool, Float64, Float64MultiArray, MultiArrayDimension, String, UInt8
 
-from lubrig_interfaces.msg import RigState, RigStateBlock, StabilityFlags, WaveletFrame
+from lubrig_interfaces.msg import RigState, RigStateBlock, ShadowBlock, StabilityFlags, WaveletFrame
 
 from ..app import cdr
 from ..app.analysis_session import AnalysisOutput, AnalysisSession, AnalysisSettings
 from ..app.contract import ANALYSIS_PARAMETERS
+from ..app.shadow import measured_velocity
 from ..core import flags as core_flags
 from . import common
 from .interfaces import create_publisher, create_subscription
@@ -50,6 +60,8 @@ OUTPUTS = (
     "wavelet_frame",
     "stability",
 )
+#: The outputs of the measured signal's analysis (shadow), each under measured/.
+MEASURED_OUTPUTS = ("dominant_frequency", "wavelet_frame", "stability")
 OSCILLATION = {
     "unknown": StabilityFlags.OSCILLATION_UNKNOWN,
     "steady": StabilityFlags.OSCILLATION_STEADY,
@@ -102,9 +114,15 @@ class Analysis(Node):
         settings = AnalysisSettings(
             values["window"], values["n_scales"], values["image_width"], values["max_columns"]
         )
+        self.settings = settings
         self.session = AnalysisSession(config, settings)
         self.pubs = {name: create_publisher(self, name) for name in OUTPUTS}
+        # shadow: made when the first shadow_block arrives
+        self.measured: AnalysisSession | None = None
+        self.measured_pubs: dict[str, Publisher] = {}
+        self._measured_last: tuple[int, int, float] | None = None  # segment, index, x of the newest
         create_subscription(self, "state_block", self._on_state_block)
+        create_subscription(self, "shadow_block", self._on_shadow_block)
         if values["per_sample_input"]:
             create_subscription(self, "state", self._on_state)
         create_subscription(self, "run_config", self._on_run_config)
@@ -120,6 +138,8 @@ class Analysis(Node):
         if problem is not None:
             self.get_logger().warning(f"ignoring an invalid run_config message: {problem}")
             return
+        if self.measured is not None:
+            self.measured.run_config_input(msg.data)
         self.get_logger().info(f"analysis: run configuration {self.session.config.name!r} from the plant")
 
     def _on_state_block(self, msg: RigStateBlock) -> None:
@@ -129,6 +149,25 @@ class Analysis(Node):
         self.session.samples_input(
             msg.displacement, msg.velocity, msg.band_velocity, msg.relative_velocity, newest
         )
+
+    def _on_shadow_block(self, msg: ShadowBlock) -> None:
+        """The measured displacement of the pairs into the measured signal's session (shadow)."""
+        index = np.asarray(msg.sample_index, dtype=np.int64)
+        x = np.asarray(msg.measured_displacement, dtype=float)
+        band = np.asarray(msg.band_velocity, dtype=float)
+        if not index.size or not (index.size == x.size == band.size) or not msg.sample_period > 0:
+            return
+        if self.measured is None:
+            self.measured = AnalysisSession(self.session.config, self.settings)
+            self.measured_pubs = {n: create_publisher(self, f"measured/{n}") for n in MEASURED_OUTPUTS}
+            self.get_logger().info("analysis: shadow blocks arrive; the measured signal is analysed too")
+        last = self._measured_last
+        previous = (last[1], last[2]) if last is not None and last[0] == msg.segment else None
+        velocity = measured_velocity(index, x, msg.sample_period, previous)
+        self._measured_last = (int(msg.segment), int(index[-1]), float(x[-1]))
+        relative = self.measured.config.rig.relative_velocity(band, velocity)
+        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        self.measured.samples_input(x, velocity, band, relative, stamp)
 
     def _on_state(self, msg: RigState) -> None:
         self.session.samples_input(
@@ -141,9 +180,11 @@ class Analysis(Node):
 
     def _tick(self) -> None:
         out = self.session.tick()
-        self._publish(out)
+        self._publish(out, self.pubs)
         if out.skipped is not None:
             self.get_logger().warning(f"analysis update skipped: {out.skipped}", throttle_duration_sec=5.0)
+        if self.measured is not None:
+            self._publish(self.measured.tick(), self.measured_pubs)
 
     def _stamp(self, out: AnalysisOutput) -> Time:
         """The stamp of an update's outputs (module docstring): rig time of its data, or now."""
@@ -153,13 +194,13 @@ class Analysis(Node):
             return stamp
         return self.get_clock().now().to_msg()
 
-    def _publish(self, out: AnalysisOutput) -> None:
-        p = self.pubs
-        if out.linear_zone is not None:
+    def _publish(self, out: AnalysisOutput, p: dict[str, Publisher]) -> None:
+        """The outputs of one update on the publishers `p` has (by output name)."""
+        if out.linear_zone is not None and "linear_zone" in p:
             p["linear_zone"].publish(UInt8(data=out.linear_zone))
-        if out.critical_damping_ratio is not None:
+        if out.critical_damping_ratio is not None and "critical_damping_ratio" in p:
             p["critical_damping_ratio"].publish(Float64(data=out.critical_damping_ratio))
-        if out.power is not None:
+        if out.power is not None and "wavelet_power" in p:
             msg = Float64MultiArray()
             rows, cols = out.power.shape
             msg.layout.dim = [
@@ -185,9 +226,9 @@ class Analysis(Node):
             stability = stability_message(out.flags, self.session.config.rig.damping_ratio)
             stability.header.stamp = now
             p["stability"].publish(stability)
-        if out.dominant_frequency is not None:
+        if out.dominant_frequency is not None and "dominant_frequency" in p:
             p["dominant_frequency"].publish(Float64(data=out.dominant_frequency))
-        if out.image is not None:
+        if out.image is not None and "wavelet_image" in p:
             image = Image()
             image.header.stamp = now
             image.header.frame_id = "wavelet"
@@ -196,9 +237,9 @@ class Analysis(Node):
             image.step = 3 * out.image.shape[1]
             image.data = out.image.tobytes()
             p["wavelet_image"].publish(image)
-        if out.oscillation_growing is not None:
+        if out.oscillation_growing is not None and "oscillation_growing" in p:
             p["oscillation_growing"].publish(Bool(data=out.oscillation_growing))
-        if out.statuses:
+        if out.statuses and "/diagnostics" in p:
             diagnostics = DiagnosticArray()
             diagnostics.header.stamp = now
             diagnostics.status = [common.diagnostic_status(s, self) for s in out.statuses]

@@ -23,12 +23,15 @@ their rules live in app/plant_session.py (unit-tested without DDS):
   which belt_drive follows to send band samples ahead. Falling behind real time: lag_policy.
 
 `scalar_topics` adds std_msgs/Float64 displacement, velocity and friction_coefficient per
-sample. A reset (<ns>/plant/reset) starts a new segment at t = 0 (stepped modes: its stamps and
-/clock go on from the old segment's end, never back) and reports it on flow_progress
-at once; <ns>/plant/pause pauses. Exit status 3 (EXIT_REAL_TIME_NOT_HELD) when a wall-clock run
-did not hold real time. Start-up: nothing runs for 1.5 s of discovery; another rig in the namespace
-ends the node (exit 2); band publishers besides `band_source` are WARNed (nodes/graph.py).
-Topics, QoS, parameters: app/contract.py.
+sample. `shadow` (rig_in_loop): the real rig's <ns>/measured_displacement (std_msgs/Float64, one
+value per message) is paired with the published samples (app/plant_session.py, "Shadow") and the
+pairs go out as <ns>/shadow_block (ShadowBlock) after each state_block; the publishers and
+messages are nodes/plant_outputs.py's. A reset (<ns>/plant/reset) starts a new segment at t = 0
+(stepped modes: its stamps and /clock go on from the old segment's end, never back) and reports
+it on flow_progress at once; <ns>/plant/pause pauses. Exit status 3 (EXIT_REAL_TIME_NOT_HELD)
+when a wall-clock run did not hold real time. Start-up: nothing runs for 1.5 s of discovery;
+another rig in the namespace ends the node (exit 2); band publishers besides `band_source` are
+WARNed (nodes/graph.py). Topics, QoS, parameters: app/contract.py.
 """
 
 from __future__ import annotations
@@ -45,15 +48,13 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Bool, Float64, String
+from std_msgs.msg import Bool, String
 from std_srvs.srv import SetBool, Trigger
 
-from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress, RigState, RigStateBlock
+from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
 
 from ..app import cdr, contract
 from ..app.plant_diagnostics import HARDWARE_ID
-from ..app.plant_output import check_state_fields
 from ..app.plant_session import (
     PlantBlock,
     PlantSample,
@@ -68,7 +69,8 @@ from ..app.plant_session import (
 from ..core.params import ParameterError
 from . import common, scheduling
 from .graph import NamespaceGuard, await_subscriber, band_source_status
-from .interfaces import create_publisher, create_service, create_subscription, report_callers
+from .interfaces import create_service, create_subscription, report_callers
+from .plant_outputs import PlantOutputs
 
 HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
 #: Wall-clock modes: flow_progress at most this often (with a state_block; belt_drive sends its
@@ -110,6 +112,10 @@ class Plant(Node):
         self.exit_status = 0
         if values["publish_clock"] and self.mode != "sim":
             self.get_logger().warning("publish_clock applies to sim mode only; no /clock published")
+        self.shadow = bool(values["shadow"]) and self.mode == "rig_in_loop"
+        if values["shadow"] and not self.shadow:
+            self.get_logger().warning("shadow applies to rig_in_loop mode only; no shadow_block published")
+            values["shadow"] = False
         self.sim_time = common.uses_sim_time(self)
         if self.sim_time and self.wall_clock:
             self.get_logger().warning(
@@ -123,28 +129,14 @@ class Plant(Node):
         # the session's settings are the parameters of the same names
         settings = PlantSettings(**{f.name: values[f.name] for f in dataclasses.fields(PlantSettings)})
         self.participant = self.get_fully_qualified_name()
-        self.pub_block = create_publisher(self, "state_block")
-        self.pub_progress = create_publisher(self, "flow_progress")
-        per_sample_state = self.mode != "sim" and bool(values["state_per_sample"])
-        self.pub_state = create_publisher(self, "state") if per_sample_state else None
-        self.pub_scalars = (
-            tuple(create_publisher(self, n) for n in ("displacement", "velocity", "friction_coefficient"))
-            if self.scalar_topics
-            else ()
+        self.out = PlantOutputs(
+            self,
+            self.participant,
+            per_sample_state=self.mode != "sim" and bool(values["state_per_sample"]),
+            scalar_topics=self.scalar_topics,
+            publish_clock=self.publish_clock,
+            shadow=self.shadow,
         )
-        self.pub_clock = create_publisher(self, "/clock") if self.publish_clock else None
-        self.pub_diag = create_publisher(self, "/diagnostics")
-        self.pub_config = create_publisher(self, "run_config")
-        self.pub_complete = create_publisher(self, "run_complete")
-        # RigState serialized by hand (layout from the interface): a third of a message object's cost
-        self._state_encoder = cdr.StampedEncoder(RigState.get_fields_and_field_types())
-        check_state_fields(self._state_encoder.names)  # encode() takes (index, segment, *values)
-        self._state_payload: bytes | None = None  # the newest RigState published
-        self._block_msg = RigStateBlock()
-        self._progress_msg = FlowProgress()
-        self._progress_msg.participant = self.participant
-        self._scalar_msgs = (Float64(), Float64(), Float64())
-        self._clock_msg = Clock()
         self._announced = False  # stepped: first flow_progress sent (the awaited subscriber is there)
         self._state_sent = 0.0  # lockstep: monotonic time the newest state was published
         self._progress_sent = 0.0  # wall-clock modes: monotonic time of the newest flow_progress
@@ -153,7 +145,7 @@ class Plant(Node):
         self._state_wanted = self.mode == "lockstep"
         # wall-clock stamps: the node clock at a session clock() time (both advance at the same rate)
         self._clock_offset_ns = self.get_clock().now().nanoseconds - time.monotonic_ns()
-        per_sample = self.pub_state is not None or self.scalar_topics
+        per_sample = self.out.state is not None or self.scalar_topics
         self.session = PlantSession(
             base,
             settings,
@@ -167,17 +159,18 @@ class Plant(Node):
         )
         self.add_on_set_parameters_callback(self._on_set_parameters)
         common.check_updates(self, contract.plant_parameters(law))
-        self.pub_config.publish(String(data=self.session.config.to_yaml()))
-        self.pub_complete.publish(Bool(data=False))
+        self.out.config.publish(String(data=self.session.config.to_yaml()))
+        self.out.complete.publish(Bool(data=False))
         # raw (serialized CDR) subscription: about 2x cheaper per message than a Float64 object
         self._band_topics = [
             create_subscription(self, n, cb, raw=n == "band_velocity").topic_name
             for n, cb in (("band_velocity", self._on_band_raw), ("band_velocity_block", self._on_band_block))
         ]
+        if self.shadow:  # raw as band_velocity: a malformed payload is NaN, rejected and counted
+            create_subscription(self, "measured_displacement", self._on_measured_raw, raw=True)
         # nothing runs before this namespace is known to be this rig's (another rig's plant, or a
         # publisher of the outputs, there: the node ends, exit status 2)
-        outputs = [self.pub_block, self.pub_state, self.pub_config, self.pub_complete, *self.pub_scalars]
-        self._clear = NamespaceGuard(self, [p.topic_name for p in outputs if p is not None]).clear
+        self._clear = NamespaceGuard(self, [p.topic_name for p in self.out.owned()]).clear
         self._heard_awaited = False  # wall clock: the awaited subscriber's flow_progress arrived
         if self.wall_clock and self.wait_for_subscriber:
             create_subscription(self, "flow_progress", self._on_progress)
@@ -213,6 +206,9 @@ class Plant(Node):
     def _on_band_raw(self, data: bytes) -> None:
         self.session.band_input(cdr.float64_value(data))  # malformed payload: NaN, rejected
 
+    def _on_measured_raw(self, data: bytes) -> None:
+        self.session.measured_input(cdr.float64_value(data))
+
     def _on_band_block(self, msg: BandVelocityBlock) -> None:
         # foreign senders: a block without a positive period or of another rate is still taken
         # sample by sample at the plant's own rate (the values are what counts)
@@ -247,7 +243,7 @@ class Plant(Node):
                 self._origin_ns = self._stamp_ns(self.session.published * self.session.integrator.dt)
             self.session.reset(config)
             segment = self.session.segment
-            self.pub_config.publish(String(data=config.to_yaml()))
+            self.out.config.publish(String(data=config.to_yaml()))
             if self.wall_clock or self._announced:  # belt_drive restarts its profile for the new segment
                 self._publish_progress(self._now_s() if self.wall_clock else self._rig_now())
         self.get_logger().info(f"reset: rig time back to 0, segment {segment}")
@@ -273,10 +269,8 @@ class Plant(Node):
         if not self._announced:
             if not self._clear.is_set():
                 return
-            outputs = [self.pub_block, *self.pub_scalars]  # state is for rig software, not recorded
-            if self.pub_clock is not None:
-                outputs.append(self.pub_clock)
-            if not common.subscribed_by(self, [p.topic_name for p in outputs], self.wait_for_subscriber):
+            outputs = [p.topic_name for p in self.out.recorded()]
+            if not common.subscribed_by(self, outputs, self.wait_for_subscriber):
                 return
             self._announced = True
             self.get_logger().info(f"{self.mode}: flow_progress as {self.participant}")
@@ -284,13 +278,12 @@ class Plant(Node):
                 self.session.emit_initial()
         with self.session.lock:
             self._publish_progress(self._rig_now())
-            if self.pub_clock is not None:
-                self._publish_clock(self._rig_now())
+            self.out.publish_clock(self._stamp(self._rig_now()))
             unanswered = time.monotonic() - self._state_sent >= HEARTBEAT_S
             lockstep = self.mode == "lockstep" and not self.session.complete
-            resend = self._state_payload
-            if lockstep and self.pub_state is not None and unanswered and resend is not None:
-                self.pub_state.publish(resend)  # the answer may have been lost
+            resend = self.out.state_payload
+            if lockstep and self.out.state is not None and unanswered and resend is not None:
+                self.out.state.publish(resend)  # the answer may have been lost
                 self._state_sent = time.monotonic()
 
     def _rig_now(self) -> float:
@@ -318,17 +311,7 @@ class Plant(Node):
 
     def _publish_progress(self, t: float) -> None:
         """flow_progress: samples published in the segment; stamp t (rig time, or node time in s)."""
-        msg = self._progress_msg
-        msg.header.stamp.sec, msg.header.stamp.nanosec = self._stamp(t)
-        msg.segment = self.session.segment
-        msg.samples = self.session.published
-        self.pub_progress.publish(msg)
-
-    def _publish_clock(self, t: float) -> None:
-        clock = self._clock_msg
-        clock.clock.sec, clock.clock.nanosec = self._stamp(t)
-        if self.pub_clock is not None:
-            self.pub_clock.publish(clock)
+        self.out.publish_progress(self._stamp(t), self.session.segment, self.session.published)
 
     def _now_s(self) -> float:
         return float(self.get_clock().now().nanoseconds) * 1e-9
@@ -345,27 +328,23 @@ class Plant(Node):
         return self._wall_time(start + block.first_sample_index * block.sample_period)
 
     def _publish_block(self, block: PlantBlock) -> None:
-        """One RigStateBlock, then flow_progress and /clock (called with the session lock)."""
-        msg = self._block_msg
+        """One RigStateBlock (shadow: then the new pairs), flow_progress and /clock (session lock held)."""
         first = self._block_start(block)
-        msg.header.stamp.sec, msg.header.stamp.nanosec = self._stamp(first)
-        msg.sample_period = block.sample_period
-        msg.first_sample_index = block.first_sample_index
-        msg.segment = block.segment
-        for name, column in block.columns.items():
-            setattr(msg, name, common.doubles(column))
-        msg.lateness = common.doubles(block.lateness)
-        msg.skipped = block.skipped
-        self.pub_block.publish(msg)
-        if self.wall_clock and self.pub_state is not None:
-            self._state_wanted = self.pub_state.get_subscription_count() > 0
+        self.out.publish_block(block, self._stamp(first))
+        if self.shadow:
+            pairs = self.session.shadow_take()
+            if pairs is not None:
+                stamp = divmod(self.get_clock().now().nanoseconds, 1_000_000_000)
+                self.out.publish_shadow(pairs, stamp, block.sample_period)
+        if self.wall_clock and self.out.state is not None:
+            self._state_wanted = self.out.state.get_subscription_count() > 0
         now = time.monotonic()
         due = now - self._progress_sent >= PROGRESS_PERIOD_S
         if not self.wall_clock or block.first_sample_index == 0 or due:
             self._progress_sent = now
             self._publish_progress(first + (len(block) - 1) * block.sample_period)
-        if self.pub_clock is not None:
-            self._publish_clock(float(block.time[-1]))
+        if self.out.clock is not None:
+            self.out.publish_clock(self._stamp(float(block.time[-1])))
         last = block.first_sample_index + len(block) - 1
         if self.exit_when_complete and self.wall_clock and last >= self.session.total:
             duration = self.session.config.duration
@@ -373,7 +352,7 @@ class Plant(Node):
 
     def _on_complete(self, done: bool) -> None:
         """run_complete (latched); stepped modes with exit_when_complete: the run is over."""
-        self.pub_complete.publish(Bool(data=done))
+        self.out.complete.publish(Bool(data=done))
         if done and self.exit_when_complete:
             self._end_of_run(f"{self.mode}: run complete")
 
@@ -390,25 +369,20 @@ class Plant(Node):
         if self._thread is not None:
             self._thread.join(timeout=1.0)
         # the outputs (flow_progress only paces the band source: over with the run)
-        outputs = (self.pub_block, self.pub_complete, self.pub_state)
+        outputs = (self.out.block, self.out.complete, self.out.state, self.out.shadow)
         common.end_when_acked([p for p in outputs if p is not None], ACK_WAIT_S)
 
     def _publish_sample(self, s: PlantSample) -> None:
         """One RigState per sample (wall-clock modes: node clock now; lockstep: rig time); scalars."""
         if self.scalar_topics:
-            mx, mv, mmu = self._scalar_msgs
-            mx.data, mv.data, mmu.data = s.displacement, s.velocity, s.friction_coefficient
-            for pub, m in zip(self.pub_scalars, self._scalar_msgs, strict=True):
-                pub.publish(m)
-        if self.pub_state is None or not self._state_wanted:
+            self.out.publish_scalars(s)
+        if self.out.state is None or not self._state_wanted:
             return
         if self.wall_clock:
-            sec, nanosec = divmod(self.get_clock().now().nanoseconds, 1_000_000_000)
+            stamp = divmod(self.get_clock().now().nanoseconds, 1_000_000_000)
         else:
-            sec, nanosec = self._stamp(s.time)
-        payload = self._state_encoder.encode(sec, nanosec, (s.sample_index, s.segment, *s.values))
-        self.pub_state.publish(payload)
-        self._state_payload = payload
+            stamp = self._stamp(s.time)
+        self.out.publish_state(stamp, s)
         self._state_sent = time.monotonic()
 
     def _await_subscriber(self) -> bool:
@@ -417,7 +391,7 @@ class Plant(Node):
             return True
         return await_subscriber(
             self,
-            self.pub_block,
+            self.out.block,
             self.wait_for_subscriber,
             self._stop,
             lambda: self._heard_awaited,
@@ -471,7 +445,7 @@ class Plant(Node):
         statuses = self.session.diagnostics()
         statuses.append(band_source_status(self, self._band_topics, self.band_source, HARDWARE_ID))
         array.status = [common.diagnostic_status(s, self) for s in statuses]
-        self.pub_diag.publish(array)
+        self.out.diagnostics.publish(array)
         self._log_problems.log(statuses)
 
     def close(self) -> None:
