@@ -52,3 +52,28 @@ def test_a_child_of_procs_ends_when_the_test_process_is_killed(tmp_path: Path) -
         parent.wait()
         if child and _alive(child):
             os.kill(child, signal.SIGKILL)
+
+
+IGNORES_SIGINT = textwrap.dedent(
+    """
+    import faulthandler, signal, time
+    faulthandler.register(signal.SIGUSR1)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    print("ready", flush=True)
+    time.sleep(600)
+    """
+)
+
+
+def test_a_process_that_does_not_stop_is_killed_with_its_state_and_stacks_shown(tmp_path: Path, capsys) -> None:
+    """stop_all: a process ignoring SIGINT ends as -9, its signal state and stacks on stderr."""
+    from lubrig_testkit.harness import Processes
+
+    procs = Processes(dict(os.environ), tmp_path)
+    stubborn = procs.command("stubborn", [sys.executable, "-c", IGNORES_SIGINT])
+    stubborn.wait_for_output("ready", 60)
+    assert procs.stop_all(timeout=1.0) == {"stubborn": -signal.SIGKILL}
+    err = capsys.readouterr().err
+    assert "stubborn did not stop within 1 s of SIGINT (SigQ:" in err
+    assert "SigIgn:" in err and "File \"<string>\", line 6" in err  # its Python stack (faulthandler)
+    assert not _alive(stubborn.pid)

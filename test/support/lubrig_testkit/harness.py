@@ -351,7 +351,9 @@ class Processes:
     def stop_all(self, timeout: float = 20.0) -> dict[str, int]:
         """SIGINT to every running process, wait up to timeout, SIGKILL leftovers; exit statuses.
 
-        A process that had to be killed shows as its negative signal number (-9).
+        A process that had to be killed shows as its negative signal number (-9); before the kill
+        its signal state and Python stacks are taken (`_signal_state`) and its whole log goes to
+        stderr, which pytest shows in full for a failed test (an assertion message is cut).
         """
         for proc in self.started.values():
             if proc.running():
@@ -363,8 +365,11 @@ class Processes:
             try:
                 codes[name] = proc.popen.wait(timeout=max(0.1, end - time.monotonic()))
             except subprocess.TimeoutExpired:
+                state = proc._signal_state()
                 proc.kill()
                 codes[name] = proc.popen.returncode
+                stuck = f"{name} did not stop within {timeout:g} s of SIGINT ({state})"
+                print(f"{stuck}:\n{proc.log()}", file=sys.stderr)
             proc._kill_group()
         return codes
 
