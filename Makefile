@@ -73,10 +73,13 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -q -m "not ros and not slow" $(PYTEST_ARGS) test
 
-# ruff check (including complexity, C901 at 15) and ruff format --check: both gate CI (.ci/run).
+# ruff check (including complexity, C901 at 15), ruff format --check and vulture (dead code and
+# test-only helpers in the package; settings and whitelist: pyproject.toml [tool.vulture]): all gate
+# CI (.ci/run).
 lint: setup
 	$(VENV)/bin/ruff check lubrig_ros test bench launch
 	$(VENV)/bin/ruff format --check lubrig_ros test bench launch
+	$(VENV)/bin/vulture
 
 # mypy on the whole package (settings in pyproject.toml [tool.mypy]); must report no issues.
 typecheck: setup

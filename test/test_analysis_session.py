@@ -15,36 +15,35 @@ from lubrig_ros.core.stability import linear_stability
 SETTINGS = AnalysisSettings(window=256, n_scales=16, image_width=64, max_columns=8)
 
 
-def test_state_is_paired_with_its_own_band_velocity():
-    config = load_case(1)
-    session = AnalysisSession(config, SETTINGS)
-    gamma = config.rig.velocity_factor
-    session.band_input(5e-7)  # a band message far ahead (sim: up to flow_window samples)
-    assert session.state_input([1e-9, 0.0], [2e-8, 1e-7])
-    assert session.vrel[-1] == 1e-7 - gamma * 2e-8  # the state's own v_band, not 5e-7
-    assert session.band == 1e-7
-    assert session.state_input([2e-9], [3e-8])  # no band joint: the latest band velocity
-    assert session.vrel[-1] == 1e-7 - gamma * 3e-8
-    assert session.x == [1e-9, 2e-9]
+def test_samples_are_taken_with_the_band_velocity_they_were_integrated_with():
+    session = AnalysisSession(load_case(1), SETTINGS)
+    taken = session.samples_input([1e-9, 2e-9], [2e-8, 3e-8], [1e-7, 2e-7], [9e-8, 1.7e-7], 0.002)
+    assert taken == 2
+    assert session.x == [1e-9, 2e-9] and session.vrel == [9e-8, 1.7e-7]
+    assert session.band == 2e-7 and session.newest_time == 0.002  # the last sample's band and time
 
 
 @pytest.mark.parametrize(
-    "position, velocity",
-    [([], [1.0]), ([1.0], []), ([math.nan], [0.0]), ([0.0], [math.inf]), ([0.0], [-math.inf, 1.0])],
+    "arrays, taken, bad",
+    [
+        (([], [], [], []), 0, 1),  # an empty block
+        (([1.0], [1.0, 2.0], [0.0], [0.0]), 0, 1),  # arrays of unequal length
+        (([math.nan], [0.0], [0.0], [0.0]), 0, 1),
+        (([0.0], [math.inf], [0.0], [0.0]), 0, 1),
+        (([0.0, 1.0], [0.0, 0.0], [0.0, 0.0], [-math.inf, 0.0]), 1, 1),  # the finite sample is kept
+        ((["a"], [0.0], [0.0], [0.0]), 0, 1),  # not numbers
+    ],
 )
-def test_malformed_states_are_counted_and_skipped(position, velocity):
+def test_malformed_samples_are_counted_and_skipped(arrays, taken, bad):
     session = AnalysisSession(default_config(), SETTINGS)
-    assert not session.state_input(position, velocity)
-    assert session.bad_messages == 1 and session.x == []
+    assert session.samples_input(*arrays) == taken
+    assert session.bad_messages == bad and len(session.x) == taken
 
 
-def test_non_finite_band_is_counted_and_ignored():
+def test_a_non_finite_band_velocity_keeps_the_last_good_one():
     session = AnalysisSession(default_config(), SETTINGS)
-    session.band_input(1e-7)
-    assert not session.band_input(math.nan)
-    assert session.band == 1e-7 and session.bad_messages == 1
-    # a non-finite band joint in a state is ignored too (the last good band is kept)
-    assert session.state_input([0.0], [0.0, math.nan])
+    session.samples_input([0.0], [0.0], [1e-7], [1e-7])
+    assert session.samples_input([0.0], [0.0], [math.nan], [1e-7]) == 1  # x, ẋ, v_rel are finite
     assert session.band == 1e-7
 
 
@@ -53,9 +52,9 @@ def test_zone_and_critical_damping_at_the_current_band():
     session = AnalysisSession(config, SETTINGS)
     out = session.tick()
     assert out.linear_zone is None and out.critical_damping_ratio is None  # no band yet
-    session.band_input(0.0)
+    session.samples_input([0.0], [0.0], [0.0], [0.0])
     assert session.tick().linear_zone is None  # a band at rest has no sliding equilibrium
-    session.band_input(-1e-7)
+    session.samples_input([0.0], [0.0], [-1e-7], [-1e-7])
     out = session.tick()
     verdict = linear_stability(1e-7, config.rig)
     assert out.linear_zone == int(verdict.zone) == 2
@@ -68,9 +67,14 @@ def test_a_full_window_gives_every_output():
     ref = simulate(config)
     session = AnalysisSession(config, SETTINGS)
     outputs = []
-    for start in range(0, len(ref), 100):  # ten updates' worth of states
-        for k in range(start, min(start + 100, len(ref))):
-            session.state_input([ref.displacement[k]], [ref.velocity[k], ref.band_velocity[k]])
+    for start in range(0, len(ref), 100):  # ten updates' worth of blocks
+        block = slice(start, start + 100)
+        session.samples_input(
+            ref.displacement[block],
+            ref.velocity[block],
+            ref.band_velocity[block],
+            ref.relative_velocity[block],
+        )
         outputs.append(session.tick())
     assert outputs[0].power is None  # the window (256 samples) is not full yet
     ready = [o for o in outputs if o.power is not None]
@@ -94,7 +98,7 @@ def test_a_full_window_gives_every_output():
 
 def test_run_config_replaces_the_rig_and_drops_buffered_samples():
     session = AnalysisSession(default_config(), SETTINGS)
-    session.state_input([1.0], [0.0])
+    session.samples_input([1.0], [0.0], [0.0], [0.0])
     case = load_case(4)
     assert session.run_config_input(case.to_yaml()) is None
     assert session.config == case and session.x == [] and session.gamma == case.rig.velocity_factor
@@ -107,14 +111,13 @@ def test_run_config_replaces_the_rig_and_drops_buffered_samples():
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")
 def test_an_update_on_input_it_cannot_analyse_is_skipped_not_fatal():
     session = AnalysisSession(load_case(1), SETTINGS)
-    session.band_input(1e-7)
-    for k in range(300):  # finite but absurd states: the wavelet statistics overflow
-        session.state_input([1e300 * (k % 2)], [1e300])
+    k = np.arange(300)  # finite but absurd samples: the wavelet statistics overflow
+    session.samples_input(1e300 * (k % 2), np.full(300, 1e300), np.full(300, 1e-7), np.full(300, -1e300))
     out = session.tick()
     assert out.skipped and "lag1" in out.skipped and session.bad_updates == 1
     assert out.linear_zone == 2  # what could be computed is still published
     assert out.power is None and out.dominant_frequency is None and out.image is None
-    session.state_input([0.0], [0.0])
+    session.samples_input([0.0], [0.0], [1e-7], [1e-7])
     assert session.tick().linear_zone == 2  # and the session goes on
 
 

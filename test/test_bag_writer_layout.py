@@ -91,7 +91,7 @@ def _write_rosbags(path: Path, inputs: list[tuple[str, str, int, bytes]]) -> Non
 
 def _write_new(path: Path, inputs: list[tuple[str, str, int, bytes]]) -> BagWriter:
     w = BagWriter(path, run_config=CONFIG)
-    w.set_custom_data(VERSION_KEY, "0.1.0")
+    w.custom_data[VERSION_KEY] = "0.1.0"
     w.add_topic("/lubrig/run_config", "std_msgs/msg/String", 1, True)
     for topic, msgtype, t, data in inputs:
         w.write(topic, msgtype, t, data)

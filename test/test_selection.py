@@ -23,9 +23,6 @@ def test_sources_and_not_given_values() -> None:
     assert base_config(None, path) == load_config(path) == RunSelection(config_file=path).resolve()
     with pytest.raises(ParameterError, match="both given"):  # one source, as on the command line
         base_config(2, path)
-    assert RunSelection(config_file=path).node_parameters() == {"config_file": str(path)}
-    assert RunSelection(case=4).node_parameters() == {"case": 4}
-    assert RunSelection().node_parameters() == {}
 
 
 def test_overrides_keep_what_is_not_given() -> None:

@@ -2,10 +2,9 @@
 
 `AnalysisSession` takes the plant's samples (`samples_input`: arrays of x, ẋ, the band velocity
 each sample was integrated with and v_rel, from a RigStateBlock or one RigState, with the rig time
-of the last one; `state_input`: the old per-sample x, ẋ pair), band messages (`band_input`) and
-the plant's run configuration (`run_config_input`); every `tick` it returns an `AnalysisOutput`
-with what the node publishes (also the wavelet power's frequency and time axes and the full
-stability flags for the typed outputs wavelet_frame and stability).
+of the last one) and the plant's run configuration (`run_config_input`); every `tick` it returns
+an `AnalysisOutput` with what the node publishes (also the wavelet power's frequency and time
+axes and the full stability flags for the typed outputs wavelet_frame and stability).
 Odd input never kills it: non-finite values are counted and skipped, an update that cannot be
 analysed is counted and reported in the output, nothing non-finite is ever returned for
 publication.
@@ -215,35 +214,6 @@ class AnalysisSession:
         if newest_time is not None and math.isfinite(newest_time):
             self.newest_time = float(newest_time)
         return int(x.size)
-
-    def band_input(self, value: float) -> bool:
-        """A band velocity message; non-finite values are counted and ignored."""
-        if math.isfinite(value):
-            self.band = value
-            return True
-        self.bad_messages += 1
-        return False
-
-    def state_input(self, position: Sequence[float], velocity: Sequence[float]) -> bool:
-        """A plant state (JointState position/velocity); False when it is skipped as malformed.
-
-        The state carries the band velocity of its own sample (joint "band", velocity[1]); the
-        sample is paired with it, not with the latest band message, which in sim mode runs up to
-        flow_window samples ahead. v_rel = v_band − γ ẋ with the rig's velocity factor γ.
-        """
-        if not (len(position) and len(velocity)):
-            self.bad_messages += 1
-            return False
-        x, v = position[0], velocity[0]
-        if not (math.isfinite(x) and math.isfinite(v)):
-            self.bad_messages += 1
-            return False
-        band = velocity[1] if len(velocity) > 1 and math.isfinite(velocity[1]) else None
-        if band is not None:
-            self.band = band
-        self.x.append(x)
-        self.vrel.append((self.band or 0.0) - self.gamma * v)
-        return True
 
     def tick(self) -> AnalysisOutput:
         """One update: linear zone and ζ_crit at the current band, then the wavelet analysis."""

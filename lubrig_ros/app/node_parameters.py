@@ -13,7 +13,7 @@ from functools import cache
 
 from ..core import schema
 from ..core.friction_laws import DEFAULT_LAW, law_parameters
-from ..core.params import CONVENTIONS
+from ..core.params import CONVENTION_CHOICES, CONVENTIONS
 from ..core.presets import CASE_NUMBERS
 from .parameter_types import NodeParameter as NodeParameter
 from .parameter_types import ParameterType as ParameterType
@@ -185,8 +185,7 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
             "convention",
             "string",
             None,
-            "physical | paper | hertz (γ = 1, 1/ω0, 1/f0); empty: the run configuration's; applied "
-            "at the next reset",
+            f"{CONVENTION_CHOICES}; empty: the run configuration's; applied at the next reset",
             choices=("", *CONVENTIONS),
             read_only=False,
             from_config="rig.convention",
@@ -432,7 +431,7 @@ ANALYSIS_PARAMETERS: tuple[NodeParameter, ...] = (
         "convention",
         "string",
         "",
-        "physical | paper | hertz (empty: from the configuration)",
+        f"{CONVENTION_CHOICES}; empty: the run configuration's",
         choices=("", *CONVENTIONS),
     ),
     _p("window", "integer", 2048, "samples in the sliding wavelet window", low=64, high=65_536),

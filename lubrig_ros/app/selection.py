@@ -134,14 +134,6 @@ class RunSelection:
             self.base(), band=self.band, contact_area=self.contact_area, **self.overrides()
         )
 
-    def node_parameters(self) -> dict[str, object]:
-        """ROS parameters that select the same base in a node (`case` or `config_file`)."""
-        if self.case is not None:
-            return {"case": int(self.case)}
-        if self.config_file is not None:
-            return {"config_file": str(self.config_file.resolve())}
-        return {}
-
 
 def apply_overrides(
     config: RunConfig,

@@ -173,10 +173,6 @@ class BagWriter:
         self.run_config = text
         self.custom_data[RUN_CONFIG_KEY] = text
 
-    def set_custom_data(self, key: str, value: str) -> None:
-        """Add a custom_data entry of metadata.yaml."""
-        self.custom_data[key] = value
-
     def _write_sidecar(self, text: str) -> None:
         write_text_atomic(self.path / CONFIG_SIDECAR, text, durable=True)
 

@@ -15,6 +15,7 @@ from lubrig_ros.core.errors import InputError
 
 from ..app.selection import RunSelection
 from ..core import schema
+from ..core.params import CONVENTION_CHOICES
 from ..core.profiles import BandProfile, ConstantBand, RegularCycle, TableBand
 from ..core.schema import FieldSpec
 
@@ -108,7 +109,7 @@ def add_run_selection(parser: argparse.ArgumentParser) -> None:
     )
     band.add_argument("--profile", metavar="CSV", help="table of time_s,band_velocity_m_s (piecewise linear)")
     parser.add_argument(
-        "--convention", metavar="C", help="relative-velocity convention: physical | paper | hertz"
+        "--convention", metavar="C", help=f"relative-velocity convention: {CONVENTION_CHOICES}"
     )
     parser.add_argument(
         "--velocity-coupling",

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, get_args
 
 from .friction_laws import DEFAULT_LAW, law_parameters
 from .schema import JUNCTION_KINETICS_FIELDS, FieldSpec, rig_fields
@@ -30,7 +30,7 @@ __all__ = [
 
 Convention = Literal["physical", "paper", "hertz"]
 #: Named readings of the velocity coupling γ in v_rel = v_band − γ ẋ (see COUPLING_READINGS).
-CONVENTIONS: tuple[str, ...] = ("physical", "paper", "hertz")
+CONVENTIONS: tuple[str, ...] = get_args(Convention)
 #: What each named convention sets γ to, and the argument for it (docs/model.md, docs/study.md).
 COUPLING_READINGS: dict[str, str] = {
     "physical": "γ = 1: v_rel = v_band − ẋ, the study's written equation in SI units "
@@ -40,6 +40,8 @@ COUPLING_READINGS: dict[str, str] = {
     "hertz": "γ = 1/f0: time counted in natural periods, t' = f0 t (ω0 written where f0 was "
     "meant, a factor 2π); same dynamics as γ = 1 with the printed contact area (s = 0.1)",
 }
+#: The conventions with their γ, for help texts and parameter descriptions.
+CONVENTION_CHOICES = " | ".join(f"{name} ({COUPLING_READINGS[name].split(':')[0]})" for name in CONVENTIONS)
 
 #: Contact area that reproduces every friction coefficient the study reports (default).
 CONTACT_AREA_CORRECTED = 2.83e-10

@@ -1,4 +1,4 @@
-"""What a wavelet spectrum shows: its ridge, its dominant components and their harmonic names.
+"""What a wavelet spectrum shows: its dominant components and their harmonic names.
 
 Read off a :class:`lubrig_ros.core.wavelet.WaveletResult` (the transform); docs/wavelets.md.
 """
@@ -33,24 +33,6 @@ def _refine_peak(values: np.ndarray, j: int) -> tuple[float, float]:
         return float(j), float(values[j])
     offset = 0.5 * (a - c) / denom
     return j + offset, float(math.exp(b - 0.25 * (a - c) * offset))
-
-
-def ridge(result: WaveletResult) -> np.ndarray:
-    """Frequency (Hz) of the power maximum at each time, interpolated between scales.
-
-    NaN where every scale is inside the cone of influence.
-    """
-    inside = ~result.outside_coi
-    power = np.where(inside, -np.inf, result.power)
-    j = np.argmax(power, axis=0)
-    out = np.full(result.time.size, np.nan)
-    log_periods = np.log(result.periods)
-    step = log_periods[1] - log_periods[0] if result.periods.size > 1 else 0.0
-    for n in np.flatnonzero(~inside.all(axis=0)):
-        column = np.where(np.isfinite(power[:, n]), result.power[:, n], 0.0)
-        pos, _ = _refine_peak(column, int(j[n]))
-        out[n] = math.exp(-(log_periods[0] + pos * step))
-    return out
 
 
 def _ordinal(k: int) -> str:

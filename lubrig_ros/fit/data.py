@@ -36,10 +36,10 @@ from ..bag.errors import BagError
 from ..bag.reader import Bag, TopicArrays
 from ..core.schema import SAMPLE_UNITS, unit_column
 
-#: The streams a record may hold, in CSV column order.
-COLUMNS: tuple[str, ...] = ("time", "band_velocity", "displacement", "friction_coefficient")
 #: The measured streams a fit compares with the model (at least one must be present).
 MEASURED: tuple[str, ...] = ("displacement", "friction_coefficient")
+#: The streams a record may hold, in CSV column order.
+COLUMNS: tuple[str, ...] = ("time", "band_velocity", *MEASURED)
 #: Samples a record needs at the least (two samples per shooting segment and some to spare).
 MIN_SAMPLES = 20
 

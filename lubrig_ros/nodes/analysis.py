@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import array
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -68,6 +69,8 @@ OSCILLATION = {
     "decaying": StabilityFlags.OSCILLATION_DECAYING,
     "growing": StabilityFlags.OSCILLATION_GROWING,
 }
+
+Samples = Sequence[float] | np.ndarray  # one of a block's arrays, or one sample's value in a list
 
 
 def _number(value: float | int | None) -> float:
@@ -146,8 +149,13 @@ class Analysis(Node):
         n = len(msg.displacement)
         start = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
         newest = start + (n - 1) * msg.sample_period if n else None
-        self.session.samples_input(
-            msg.displacement, msg.velocity, msg.band_velocity, msg.relative_velocity, newest
+        self._take(
+            self.session,
+            msg.displacement,
+            msg.velocity,
+            msg.band_velocity,
+            msg.relative_velocity,
+            newest=newest,
         )
 
     def _on_shadow_block(self, msg: ShadowBlock) -> None:
@@ -167,16 +175,29 @@ class Analysis(Node):
         self._measured_last = (int(msg.segment), int(index[-1]), float(x[-1]))
         relative = self.measured.config.rig.relative_velocity(band, velocity)
         stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-        self.measured.samples_input(x, velocity, band, relative, stamp)
+        self._take(self.measured, x, velocity, band, relative, newest=stamp)
 
     def _on_state(self, msg: RigState) -> None:
-        self.session.samples_input(
+        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        self._take(
+            self.session,
             [msg.displacement],
             [msg.velocity],
             [msg.band_velocity],
             [msg.relative_velocity],
-            msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec,
+            newest=stamp,
         )
+
+    def _take(self, session: AnalysisSession, *samples: Samples, newest: float | None) -> None:
+        """Samples (x, ẋ, v_band, v_rel) into a session; the ones it skips as malformed are logged."""
+        before = session.bad_messages
+        x, velocity, band, relative = samples
+        session.samples_input(x, velocity, band, relative, newest)
+        if session.bad_messages > before:
+            self.get_logger().warning(
+                f"analysis: {session.bad_messages} malformed or non-finite samples skipped so far",
+                throttle_duration_sec=5.0,
+            )
 
     def _tick(self) -> None:
         out = self.session.tick()

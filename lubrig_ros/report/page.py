@@ -12,7 +12,6 @@ from ..core.run import summarize
 from .frombag import open_bag, read_run
 from .html import write_html_page
 
-FIGURE_FILES = ("wavelet.png", "time_history.png", "phase.png", "friction_velocity.png", "mu_velocity.png")
 PAGE = "report.md"
 HTML_PAGE = "report.html"
 #: Declared gaps listed one by one on the page at most (all of them are in summary.json).
