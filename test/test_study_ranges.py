@@ -32,12 +32,12 @@ def test_gone_shows_each_reference_level() -> None:
     assert GONE_FRACTIONS[0] < 0.1 < GONE_FRACTIONS[-1]
     times = [6.25, 5.5, 4.25, 3.25, 2.5]  # paper case 9 as measured
     metrics = {9: {"f0_gone_time": 4.25, "f0_gone_times": times}}
-    agree, text = check.gone(9, 10.0)(metrics, RIG)
+    agree, text = check.gone(9)(metrics, RIG)
     assert not agree and "holds at 0.03, 0.05 only" in text
     metrics = {9: {"f0_gone_time": 8.0, "f0_gone_times": [12.0, 10.0, 8.0, 6.0, float("inf")]}}
-    agree, text = check.gone(9, 10.0)(metrics, RIG)
+    agree, text = check.gone(9)(metrics, RIG)
     assert agree and "holds at 0.03, 0.05, 0.1, 0.2 only" in text
-    agree, text = check.gone(9, 10.0)({9: {"f0_gone_time": 8.0}}, RIG)  # an old scan table
+    agree, text = check.gone(9)({9: {"f0_gone_time": 8.0}}, RIG)  # an old scan table
     assert agree and "per reference level" not in text
 
 

@@ -24,6 +24,22 @@ from .study_runs import GONE_FRACTION, GONE_FRACTIONS, REALISTIC_ZETA, STICKSLIP
 #: "Identical amplitude levels" (C2a): the ratio within [1/(1 + t), 1 + t]; chosen t and the
 #: reasonable range of t over which the page shows the verdict.
 SAME_TOLERANCE, SAME_TOLERANCES = 0.25, (0.2, 0.3)
+#: "Disappears after about N s" (C9b, C10b): N of each case, and the window [0.5 N, 2 N] a
+#: disappearance time must fall in to count as "about N s".
+GONE_AFTER_S: dict[int, float] = {9: 10.0, 10: 5.0}
+ABOUT_WINDOW = (0.5, 2.0)
+
+
+def about(time: float | None, when: float) -> bool:
+    """Whether a time (s) is "about `when`" (ABOUT_WINDOW)."""
+    return (
+        time is not None and math.isfinite(time) and ABOUT_WINDOW[0] * when <= time <= ABOUT_WINDOW[1] * when
+    )
+
+
+def about_text(when: float) -> str:
+    """The ABOUT_WINDOW around `when` as text: "2.5 … 10 s"."""
+    return f"{ABOUT_WINDOW[0] * when:g} … {ABOUT_WINDOW[1] * when:g} s"
 
 
 def _g(value: float | None, digits: int = 3) -> str:
@@ -279,9 +295,11 @@ def fast_decay(n: int, compare: int) -> Callable[[Metrics, RigParameters], tuple
     return check
 
 
-def gone(n: int, when: float) -> Callable[[Metrics, RigParameters], tuple[bool, str]]:
+def gone(n: int) -> Callable[[Metrics, RigParameters], tuple[bool, str]]:
+    when = GONE_AFTER_S[n]
+
     def inside(time: float | None) -> bool:
-        return time is not None and math.isfinite(time) and 0.5 * when <= time <= 2.0 * when
+        return about(time, when)
 
     def check(metrics: Metrics, _: RigParameters) -> tuple[bool, str]:
         m = metrics[n]
@@ -371,14 +389,14 @@ def same_amplitude_span(metrics: Metrics) -> tuple[bool, bool]:
     return grows and needed <= SAME_TOLERANCES[1], grows and needed <= SAME_TOLERANCES[0]
 
 
-def gone_span(n: int, when: float) -> Callable[[Metrics], tuple[bool, bool] | None]:
+def gone_span(n: int) -> Callable[[Metrics], tuple[bool, bool] | None]:
     """C9b/C10b over the reference levels GONE_FRACTIONS: (holds at some, holds at every level)."""
 
     def span(metrics: Metrics) -> tuple[bool, bool] | None:
         times = metrics[n].get("f0_gone_times")
         if not times:
             return None
-        inside = [math.isfinite(t) and 0.5 * when <= t <= 2.0 * when for t in times]
+        inside = [about(t, GONE_AFTER_S[n]) for t in times]
         return any(inside), all(inside)
 
     return span

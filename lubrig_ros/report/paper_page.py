@@ -10,14 +10,12 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
-
 from ..app.selection import base_config
 from ..app.study import SPANS, STATEMENTS, Verdict, score_span, scorecard
 from ..app.study_floquet import PeriodDoubling
 from ..app.study_runs import CASES, Metrics, rig_with_coupling
 from ..core.params import CONVENTIONS, RigParameters
-from ..core.stability import critical_damping_ratio
+from . import paper_numbers
 from .paper_floquet import doubling_section
 
 FIGURES = "study"  # figure directory next to the page (docs/study/ once copied)
@@ -48,8 +46,9 @@ MECHANISMS: dict[str, str] = {
     "transient decay slowly over the 20 s run (critical slowing down), until case 8 falls into "
     "full stick-slip at lower frequencies.",
     "C10b": "the 10 Hz transient decays faster as s grows (the V2 plateau in zone 3 adds damping "
-    "∝ s): below 10 % of its early level after less than 2.5 s for s ≳ 0.06; in the physical "
-    "reading's stick-slip it never disappears.",
+    "∝ s): it falls below {gone_pct} of its early level in less than {c10b_early:g} s (the lower "
+    "end of 'about 5 s') where the scan has it, at s = {c10b_fast}; in the physical reading's "
+    "stick-slip it never disappears.",
     "C8c": "measured between samples (core/dense.py), case 8 reaches the friction peak (μ max "
     "{c8_peak:.4g}) at every scanned s ≥ {c8_s_peak:.3g}: v_rel passes 4.08e-12 m/s at each stick "
     "entry within a microsecond, which a 1 kHz record steps over (for s = {c8_missed} the sampled "
@@ -61,9 +60,10 @@ MECHANISMS: dict[str, str] = {
     "reverses in places (μ < 0). Below s = {c8_s_peak:.3g} the mass does not stick and μ stays in "
     "zone 2–3 (max {c8_slide_max:.3g}).",
     "C9a": "the residual is small at every s, but the 10 Hz transient decays at about the structural "
-    "rate ζ ω0 = 0.63 /s, so the band-period amplitude takes about 4 s, not under 3 s, to settle.",
-    "C9b": "the 10 Hz transient decays at about ζ ω0 = 0.63 /s (falls to 10 % in about 4 s); "
-    "'about 10 s' would need a decay 2.5 × slower.",
+    "rate ζ ω0 = {zeta_omega:.2g} /s, so the band-period amplitude takes about {t_gone:.2g} s, not "
+    "under 3 s, to settle.",
+    "C9b": "the 10 Hz transient decays at about ζ ω0 = {zeta_omega:.2g} /s (falls to {gone_pct} in "
+    "about {t_gone:.2g} s); 'about 10 s' would need a decay {c9b_slower:.2g} × slower.",
     "C9c": "case 9's band (1e-7 ↔ 2e-7 m/s) crosses the minimum of μ (1.35e-7 m/s) on every ramp, so "
     "the forcing μ(v_band(t)) dips and rises twice per band period: a strong 66.7 Hz harmonic (about "
     "40 % of the 33.3 Hz amplitude) at every s where the response follows the band.",
@@ -76,8 +76,9 @@ MECHANISMS: dict[str, str] = {
     "M4": "at small s, γ ẋ is tiny compared with v_band in every case, so μ follows the band alone "
     "(R² ≈ 1); μ follows the mass velocity only where s is large enough for the plateau oscillation "
     "to matter.",
-    "C2a": "case 2's longer plateaus let the V1 oscillation grow a little more: the ratio to case 1 "
-    "is 1.2–1.3, at the edge of 'identical' (±25 %).",
+    "C2a": "case 2's longer plateaus let the V1 oscillation grow a little more: where the scan "
+    "differs and case 2 slides throughout (s = {c2a_range}) the ratio to case 1 is {c2a_ratio}, "
+    "against 'identical' within ±{same_tolerance:.0%}; at larger s case 2 falls into stick-slip first.",
     "C4a": "case 4 starts at its stationary amplitude (no growth phase).",
     "C1b": "in stick-slip the transient is a slow build-up of sticking phases, not an overshoot near 1 s.",
     "C1c": "in stick-slip the response is set by the stick-slip period, not by the band harmonics.",
@@ -113,22 +114,6 @@ def score(verdicts: list[Verdict]) -> int:
 def scan_scorecards(scan: dict[float, Metrics]) -> dict[float, list[Verdict]]:
     """Scorecard at every scanned coupling s (γ = s with the default contact area)."""
     return {s: scorecard(scan[s], rig_with_coupling(RigParameters(), s)) for s in sorted(scan)}
-
-
-def agreement_intervals(cards: dict[float, list[Verdict]], key: str) -> str:
-    """Scanned s ranges (first … last scanned value) where a statement agrees, as text."""
-    values = sorted(cards)
-    flags = [next(v.agree for v in cards[s] if v.key == key) for s in values]
-    parts, start = [], None
-    for i, flag in enumerate(flags):
-        if flag and start is None:
-            start = i
-        if start is not None and (not flag or i == len(flags) - 1):
-            end = i if flag else i - 1
-            a, b = values[start], values[end]
-            parts.append(f"{a:.3g}" if a == b else f"{a:.3g} … {b:.3g}")
-            start = None
-    return ", ".join(parts) or "none"
 
 
 def _span_text(scan_cards: dict[float, list[Verdict]], best: list[float]) -> str:
@@ -214,73 +199,6 @@ def _best_text(scan_cards: dict[float, list[Verdict]], total: int) -> str:
     return f"{best} of {total}, in {len(groups)} separate range(s) of the scan: " + "; ".join(parts) + "."
 
 
-def _first(values: list[float], flags: list[bool]) -> float:
-    return next((s for s, flag in zip(values, flags, strict=True) if flag), math.nan)
-
-
-def _numbers(
-    scan: dict[float, Metrics] | None,
-    scan_cards: dict[float, list[Verdict]] | None = None,
-    doubling: PeriodDoubling | None = None,
-) -> dict[str, Any]:
-    """Thresholds quoted by the mechanisms (linear theory, case 8's Floquet threshold, the scan)."""
-    unit = rig_with_coupling(RigParameters(), 1.0)
-    zc_v1 = float(critical_damping_ratio(1e-7, unit))  # ζ_crit at s = 1 (∝ s)
-    zc_edge = float(critical_damping_ratio(3e-8, unit))
-    v = np.logspace(np.log10(3.05e-8), np.log10(1.34e-7), 200)
-    nan = math.nan
-    out: dict[str, Any] = {
-        "zc_v1": zc_v1,
-        "s_v1": 0.01 / zc_v1,
-        "s_edge": 0.1 / zc_edge,
-        "s_stab": 0.12 / float(np.max(critical_damping_ratio(v, unit))),
-        "s_pd": doubling.threshold if doubling is not None else nan,
-        "s_pd_scan": nan,
-        "s_c8a": nan,
-        "c8b_range": "none",
-        "c8_missed": "none",
-        **dict.fromkeys(("c8_peak", "c8_s_peak", "c8_sampled", "c8_min_lo", "c8_min_hi"), nan),
-        **dict.fromkeys(("c8_s_rev", "c8_slide_max"), nan),
-    }
-    if scan:
-        values = sorted(scan)
-        m8 = [scan[s][8] for s in values]
-        out["s_pd_scan"] = _first(
-            values,
-            [
-                m["f0_growth_rate"] is not None and m["f0_growth_rate"] > 0 and m["f0_amplitude_late"] > 1e-10
-                for m in m8
-            ],
-        )
-        if scan_cards:
-            out["s_c8a"] = _first(values, [_agrees(scan_cards[s], "C8a") for s in values])
-            out["c8b_range"] = agreement_intervals(scan_cards, "C8b")
-        if all(m.get("mu_max_dense") is not None for m in m8):
-            high = [float(m["mu_max_dense"]) for m in m8]
-            low = [float(m["mu_min_dense"]) for m in m8]
-            at_peak = [h >= 0.1 for h in high]
-            out["c8_s_peak"] = _first(values, at_peak)
-            peaked = [i for i, flag in enumerate(at_peak) if flag]
-            sliding = [i for i, flag in enumerate(at_peak) if not flag and values[i] < out["c8_s_peak"]]
-            if peaked:
-                out["c8_peak"] = max(high[i] for i in peaked)
-                missed = [i for i in peaked if float(m8[i]["mu_max"]) < 0.1]
-                if missed:
-                    out["c8_sampled"] = max(float(m8[i]["mu_max"]) for i in missed)
-                    out["c8_missed"] = f"{values[missed[0]]:.3g} … {values[missed[-1]]:.3g}"
-                positive = [low[i] for i in peaked if low[i] >= 0]
-                out["c8_min_lo"] = min(positive) if positive else nan
-                out["c8_min_hi"] = max(low[i] for i in peaked)
-            if sliding:
-                out["c8_slide_max"] = max(high[i] for i in sliding)
-            out["c8_s_rev"] = _first(values, [lo < 0 for lo in low])
-    return out
-
-
-def _agrees(verdicts: list[Verdict], key: str) -> bool:
-    return next(v.agree for v in verdicts if v.key == key)
-
-
 def comparison_markdown(
     cards: dict[str, list[Verdict]],
     summaries: dict[str, dict[int, dict[str, Any]]],
@@ -298,7 +216,7 @@ def comparison_markdown(
     total = len(STATEMENTS)
     if scan_cards is None:
         scan_cards = scan_scorecards(scan) if scan else {}
-    numbers = _numbers(scan, scan_cards, doubling)
+    numbers = paper_numbers.numbers(scan, scan_cards, doubling)
     lines = [
         "# The study reproduced, statement by statement",
         "",
@@ -389,7 +307,7 @@ def comparison_markdown(
         for statement in STATEMENTS:
             lines.append(
                 f"| {statement.key} | {_cell(statement.study)} | "
-                f"{agreement_intervals(scan_cards, statement.key)} |"
+                f"{paper_numbers.agreement_intervals(scan_cards, statement.key)} |"
             )
     lines += [
         "",
