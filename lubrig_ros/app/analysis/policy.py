@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 from scipy.signal import decimate
 
-from ..core.errors import LubrigError
-from ..core.wavelet import DEFAULT_DJ, MIN_SAMPLES, WaveletResult, cwt, fourier_factor
-from ..core.wavelet_components import Component, dominant_components
+from ...core.errors import LubrigError
+from ...core.wavelet import DEFAULT_DJ, MIN_SAMPLES, WaveletResult, cwt, fourier_factor
+from ...core.wavelet_components import Component, dominant_components
 
 #: Largest scales × samples computed; longer windows are decimated (anti-aliased) to fit.
 MAX_POWER_POINTS = 30_000_000

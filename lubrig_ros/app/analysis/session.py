@@ -21,12 +21,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import yaml
 
-from ..core.flags import StabilityFlags, evaluate_flags
-from ..core.online import OnlineUpdate, OnlineWaveletAnalyzer
-from ..core.params import ParameterError
-from ..core.presets import RunConfig, from_mapping
-from ..core.stability import linear_stability
-from .diagnostics import Status
+from ...core.flags import StabilityFlags, evaluate_flags
+from ...core.online import OnlineUpdate, OnlineWaveletAnalyzer
+from ...core.params import ParameterError
+from ...core.presets import RunConfig, from_mapping
+from ...core.stability import linear_stability
+from ..interface.diagnostics import Status
 
 HARDWARE_ID = "lubrig_analysis"
 #: Flag groups of core.flags.StabilityFlags, one diagnostic status each.
@@ -92,7 +92,7 @@ def flag_statuses(flags: StabilityFlags) -> list[Status]:
 
 @dataclass(frozen=True)
 class AnalysisSettings:
-    """Read-only node settings (contract defaults and ranges: app/contract.ANALYSIS_PARAMETERS)."""
+    """Read-only node settings (contract defaults and ranges: app/interface/contract.ANALYSIS_PARAMETERS)."""
 
     window: int = 2048
     n_scales: int = 32

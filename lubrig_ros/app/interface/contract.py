@@ -1,10 +1,10 @@
 """The rig's ROS interface as data: topics, services, QoS and node parameters (no ROS import).
 
-The node parameters live in app/node_parameters.py and are re-exported here. Every other place
+The node parameters live in app/interface/node_parameters.py and are re-exported here. Every other place
 derives from this module: the nodes create their publishers, subscriptions,
 services and parameters from it, the recorder and replay take their topic list and QoS from it,
 and the tables in README.md, docs/topics.md and docs/nodes.md are generated from it
-(lubrig_ros/app/contract_docs.py; test/test_contract.py keeps them in sync).
+(lubrig_ros/app/interface/contract_docs.py; test/test_contract.py keeps them in sync).
 
 Names are stored RELATIVE (``band_velocity``, ``plant/reset``); only the ROS-wide standard topics
 ``/clock`` and ``/diagnostics`` are absolute. The nodes hand rclpy the relative names
@@ -67,7 +67,7 @@ STEPPED_MODES: tuple[str, ...] = ("sim", "lockstep")
 #: Exit status of a wall-clock plant (and `lubrig rig`) whose run did not hold real time.
 EXIT_REAL_TIME_NOT_HELD = 3
 #: Exit status of a stepped-mode plant (sim, lockstep) whose run ended on a sample that could
-#: not be integrated (app/plant_session.py, "Integration failure"); `lubrig rig` ends with it.
+#: not be integrated (app/plant/session.py, "Integration failure"); `lubrig rig` ends with it.
 EXIT_INTEGRATION_FAILED = 4
 
 # ------------------------------------------------------------------------------------- QoS

@@ -1,7 +1,7 @@
-"""Markdown tables of the contract (app/contract.py, core/schema.py) for README.md and docs/.
+"""Markdown tables of the contract (app/interface/contract.py, core/schema.py) for README.md and docs/.
 
 The documents hold generated blocks between ``<!-- contract:NAME -->`` and
-``<!-- /contract:NAME -->``; ``python -m lubrig_ros.app.contract_docs`` rewrites them from the
+``<!-- /contract:NAME -->``; ``python -m lubrig_ros.app.interface.contract_docs`` rewrites them from the
 contract and ``--check`` fails (exit 1, naming the file and block) when one is out of date
 (test/test_contract.py runs the check).
 """
@@ -14,7 +14,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from ..core.schema import SAMPLE_FIELDS, unit_column
+from ...core.schema import SAMPLE_FIELDS, unit_column
 from . import contract
 from .contract import DEFAULT_NAMESPACE, NodeParameter
 
@@ -92,7 +92,7 @@ def friction_law_table() -> str:
     """The plant's friction.<field> parameters of every built-in friction law, with defaults."""
     from dataclasses import fields
 
-    from ..core.friction_laws import BUILTIN_LAWS, law_parameters
+    from ...core.friction_laws import BUILTIN_LAWS, law_parameters
 
     rows = ["| `friction.law` | `friction.<field>` parameters (default) |", "|---|---|"]
     for law in BUILTIN_LAWS:
@@ -164,13 +164,15 @@ def problems(root: Path) -> list[str]:
         present = {m.group(2) for m in _BLOCK.finditer(text)}
         found += [f"{name}: block 'contract:{b}' missing" for b in blocks if b not in present]
         if render(text) != text:
-            found.append(f"{name}: generated tables differ from app/contract.py")
+            found.append(f"{name}: generated tables differ from app/interface/contract.py")
     return found
 
 
 def main(argv: list[str] | None = None) -> int:
     """Rewrite (or --check) the generated tables of the documents."""
-    parser = argparse.ArgumentParser(prog="python -m lubrig_ros.app.contract_docs", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="python -m lubrig_ros.app.interface.contract_docs", description=__doc__
+    )
     parser.add_argument("root", nargs="?", type=Path, default=Path.cwd(), help="repository root")
     parser.add_argument("--check", action="store_true", help="only report what is out of date")
     args = parser.parse_args(argv)

@@ -1,6 +1,6 @@
 """ROS 2 names without ROS: the one validator of namespaces and topic/service names, and resolution.
 
-Part of the rig's interface contract (app/contract.py re-exports every name here). The rules are
+Part of the rig's interface contract (app/interface/contract.py re-exports every name here). The rules are
 ROS 2's (rmw_validate_namespace, rcl's name resolution); test/test_contract.py checks them
 against rclpy's own validator.
 """
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 
-from ..core.params import ParameterError
+from ...core.params import ParameterError
 
 #: Longest namespace ROS 2 accepts (rmw: RMW_NAMESPACE_MAX_NAME_LENGTH; measured with rclpy: 245).
 NAMESPACE_MAX_LENGTH = 245

@@ -1,6 +1,6 @@
 """The nodes' ROS parameters as data: name, type, default, unit, range, meaning (no ROS import).
 
-Part of the rig's interface contract (app/contract.py re-exports every name here). The parameters
+Part of the rig's interface contract (app/interface/contract.py re-exports every name here). The parameters
 that set a run configuration's fields take their unit and physical range from core/schema.py, so
 the descriptors (`ros2 param describe`), the docs (docs/nodes.md, generated) and the run
 configuration's own checks agree; the others carry their ranges here.
@@ -11,10 +11,10 @@ from __future__ import annotations
 from dataclasses import fields
 from functools import cache
 
-from ..core import schema
-from ..core.friction_laws import DEFAULT_LAW, law_parameters
-from ..core.params import CONVENTIONS
-from ..core.presets import CASE_NUMBERS
+from ...core import schema
+from ...core.friction_laws import DEFAULT_LAW, law_parameters
+from ...core.params import CONVENTIONS
+from ...core.presets import CASE_NUMBERS
 from .parameter_types import NodeParameter as NodeParameter
 from .parameter_types import ParameterType as ParameterType
 from .parameter_types import field_parameter as _field
@@ -23,7 +23,7 @@ from .profile_parameters import PROFILE_PARAMETERS as PROFILE_PARAMETERS
 from .profile_parameters import profile_parameter as profile_parameter
 
 MODES: tuple[str, ...] = ("sim", "lockstep", "realtime", "rig_in_loop")
-#: What a wall-clock plant does once it is more than max_lag behind real time (app/plant_session.py).
+#: What a wall-clock plant does once it is more than max_lag behind real time (app/plant/session.py).
 LAG_POLICIES: tuple[str, ...] = ("skip", "stop")
 DEFAULT_LAG_POLICY = "skip"
 #: s: lateness a wall-clock plant catches up on before it has not held real time.
@@ -262,7 +262,7 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
             "realtime, rig_in_loop: once more than max_lag behind real time, skip (keep real time: "
             "integrate the overdue samples with the band values known for them, publish none of "
             "them, declare the gap in the next state_block) or stop (no more output); ERROR either "
-            "way, and the node exits with status 3 (app/plant_session.py)",
+            "way, and the node exits with status 3 (app/plant/session.py)",
             choices=LAG_POLICIES,
         ),
         _p(

@@ -1,6 +1,6 @@
 """The type of a node parameter in the contract: name, type, default, unit, range, meaning.
 
-Plain data (no ROS import); the tables of every node's parameters are app/node_parameters.py,
+Plain data (no ROS import); the tables of every node's parameters are app/interface/node_parameters.py,
 the ROS descriptors are made from these by nodes/common.py.
 """
 
@@ -10,8 +10,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from ..core.schema import FieldSpec, number_text
-from ..core.validation import ParameterError
+from ...core.schema import FieldSpec, number_text
+from ...core.validation import ParameterError
 
 ParameterType = Literal["double", "integer", "string", "bool", "string_array"]
 

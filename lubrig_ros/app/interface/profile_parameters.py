@@ -1,12 +1,13 @@
 """belt_drive's band profile parameters as data: profile.kind, every band kind's fields, profile.path.
 
-Part of the nodes' parameters (app/node_parameters.py re-exports them, app/contract.py in turn);
-the numeric fields take their unit and physical range from core/schema.py `BAND_FIELDS`.
+Part of the nodes' parameters (app/interface/node_parameters.py re-exports them,
+app/interface/contract.py in turn); the numeric fields take their unit and physical range from
+core/schema.py `BAND_FIELDS`.
 """
 
 from __future__ import annotations
 
-from ..core import schema
+from ...core import schema
 from .parameter_types import NodeParameter
 from .parameter_types import field_parameter as _field
 from .parameter_types import param as _p

@@ -12,9 +12,9 @@ from collections.abc import Mapping
 from dataclasses import asdict, replace
 from typing import Any
 
-from ..core.friction_laws import law_parameters
-from ..core.presets import RunConfig, from_mapping
-from .contract import RIG_FIELDS, friction_fields, plant_parameters
+from ...core.friction_laws import law_parameters
+from ...core.presets import RunConfig, from_mapping
+from ..interface.contract import RIG_FIELDS, friction_fields, plant_parameters
 
 
 def law_of(config: RunConfig) -> str:

@@ -1,6 +1,6 @@
 """The plant's diagnostics without ROS: its timing and band-input statuses, read off a PlantSession.
 
-Two statuses (app.diagnostics.Status, /diagnostics on the node): "timing" (rig time, deadline
+Two statuses (app.interface.diagnostics.Status, /diagnostics on the node): "timing" (rig time, deadline
 misses, lateness, lag and the lag policy, skipped samples, tick overruns, the stall of a sim
 run, the lockstep round trip) and "band input" (received, rejected, stale or held input, the
 indexed and queued input's counters). Each report starts a new "since the last report" count.
@@ -8,9 +8,9 @@ indexed and queued input's counters). Each report starts a new "since the last r
 
 from __future__ import annotations
 
-from .diagnostics import Level, Status
-from .plant_modes import ModeRules
-from .plant_state import PlantState
+from ..interface.diagnostics import Level, Status
+from .modes import ModeRules
+from .state import PlantState
 
 HARDWARE_ID = "lubrig_plant"
 #: Sim: a run that has started, is neither paused nor complete, and got no band sample for this

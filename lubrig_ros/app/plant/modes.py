@@ -3,9 +3,9 @@
 A `PlantSession` holds the shared state (configuration, integrator, counters, sinks) and one
 `ModeRules` object chosen by mode from `MODE_RULES`; the session's band input, reset, pause and
 start go through it. This module has the stepped family (``sim``, ``lockstep``: rig time is the
-session's own, band values integrated strictly in order in blocks); app/plant_wallclock.py has
+session's own, band values integrated strictly in order in blocks); app/plant/wallclock.py has
 the wall-clock family (``realtime``, ``rig_in_loop``). The rules are documented once, in the
-module docstring of app/plant_session.py.
+module docstring of app/plant/session.py.
 
 Every method is called with the session's lock held.
 """
@@ -18,12 +18,12 @@ from typing import Protocol
 import numpy as np
 from typing_extensions import override
 
-from ..core.trajectory import Trajectory, concatenate
-from .plant_state import PlantState
+from ...core.trajectory import Trajectory, concatenate
+from .state import PlantState
 
 
 class ModeRules(Protocol):
-    """One mode's rules over the plant's state (app.plant_state.PlantState; the session's `rules`)."""
+    """One mode's rules over the plant's state (app.plant.state.PlantState; the session's `rules`)."""
 
     #: Rig time is the session's own (True), or it follows the wall clock.
     stepped: bool

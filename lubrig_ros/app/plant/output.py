@@ -16,8 +16,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..core.schema import SAMPLE_FIELDS
-from ..core.trajectory import Trajectory, TrajectorySample
+from ...core.schema import SAMPLE_FIELDS
+from ...core.trajectory import Trajectory, TrajectorySample
 
 _EMPTY = np.zeros(0)
 

@@ -6,7 +6,7 @@ thread in the realtime modes, forwards reset/pause requests and parameter update
 what the session hands to its sinks (`on_sample` per sample, `on_block` per block of samples,
 `on_complete`, `on_fault`, `on_failure`, `log`).
 
-Modes (app/contract.MODES), in two families:
+Modes (app/interface/contract.MODES), in two families:
 
 * stepped — ``sim`` and ``lockstep``: rig time is the session's own. Band values are queued and
   integrated strictly in order, one sample per band value, a block (`band_block`) as one call of
@@ -56,7 +56,7 @@ samples before it are emitted, band input after it is counted (`ignored_after_en
 the run does not complete (the sim plant node then ends with EXIT_INTEGRATION_FAILED). Wall-clock
 modes: no output until a reset, which clears the fault (docs/nodes.md).
 
-Shadow (``rig_in_loop`` with the `shadow` setting; app/plant_shadow.py, app/shadow.py): the real
+Shadow (``rig_in_loop`` with the `shadow` setting; app/plant/shadow_rules.py, app/plant/shadow.py): the real
 rig also sends its measured displacement, one value per message (`measured_input`), and each is
 paired with the published sample it answers, by the band value both belong to. Band values are
 numbered as the rig sent them in the segment: a Float64 band value by its message's place (0, 1,
@@ -71,7 +71,7 @@ segment so far. So the pairing does not depend on when the messages arrive: a ri
 band ahead in blocks (the plant takes one value per tick, in order) and its measured values in the
 same order gets the residual of the very same band history. A value not paired within one second
 of numbers (a band value replaced before a tick took it, a skipped sample) is dropped and counted
-(`unpaired`); a measured value that is not finite or exceeds app/shadow.MEASURED_LIMIT (1 m) in
+(`unpaired`); a measured value that is not finite or exceeds app/plant/shadow.MEASURED_LIMIT (1 m) in
 magnitude is rejected and counted, never paired. A reset restarts both numberings and the RMS (the
 rig restarts its numbering on the new segment, as belt_drive does). The pairs made are handed to
 the node with every block (`shadow_take`: a ShadowBlock beside each state_block); the "shadow"
@@ -81,8 +81,8 @@ Thread safety: every public method takes the session's lock, so the real-time lo
 executor's callbacks may call it concurrently; sinks are called with the lock held (in order).
 
 Where it lives: this module holds the shared state, configuration, input checks and output; what
-differs by mode is a `ModeRules` object from MODE_RULES (app/plant_modes.py: sim, lockstep;
-app/plant_wallclock.py: realtime, rig_in_loop); the statuses are app/plant_diagnostics.py.
+differs by mode is a `ModeRules` object from MODE_RULES (app/plant/modes.py: sim, lockstep;
+app/plant/wallclock.py: realtime, rig_in_loop); the statuses are app/plant/diagnostics.py.
 """
 
 from __future__ import annotations
@@ -94,11 +94,11 @@ from typing import Any
 
 import numpy as np
 
-from ..core.params import ParameterError
-from ..core.presets import RunConfig
-from ..core.run import integrator_for
-from .diagnostics import Status
-from .plant_config import (
+from ...core.params import ParameterError
+from ...core.presets import RunConfig
+from ...core.run import integrator_for
+from ..interface.diagnostics import Status
+from .config import (
     CONFIG_PARAMETERS,
     RUNTIME_PARAMETERS,
     config_from,
@@ -107,13 +107,13 @@ from .plant_config import (
     parameter_defaults,
     runtime_parameters,
 )
-from .plant_diagnostics import STALL_S, diagnostics
-from .plant_modes import LockstepRules, ModeRules, SteppedRules
-from .plant_output import BeltTravel, PlantBlock, PlantSample
-from .plant_shadow import ShadowRules
-from .plant_state import PlantSettings, PlantState
-from .plant_wallclock import IndexedRules, WallClockRules
+from .diagnostics import STALL_S, diagnostics
+from .modes import LockstepRules, ModeRules, SteppedRules
+from .output import BeltTravel, PlantBlock, PlantSample
 from .shadow import ShadowSamples
+from .shadow_rules import ShadowRules
+from .state import PlantSettings, PlantState
+from .wallclock import IndexedRules, WallClockRules
 
 __all__ = [
     "CONFIG_PARAMETERS",
@@ -131,7 +131,7 @@ __all__ = [
     "runtime_parameters",
 ]
 
-#: The rules of each mode of app/contract.MODES (a class taking the session).
+#: The rules of each mode of app/interface/contract.MODES (a class taking the session).
 MODE_RULES: dict[str, Callable[[PlantState], ModeRules]] = {
     "sim": SteppedRules,
     "lockstep": LockstepRules,
@@ -327,7 +327,7 @@ class PlantSession(PlantState):
         return age
 
     def diagnostics(self) -> list[Status]:
-        """The timing and band-input statuses (app/plant_diagnostics); a new 'since last report' count."""
+        """The timing and band-input statuses (app/plant/diagnostics); a new 'since last report' count."""
         with self.lock:
             statuses = diagnostics(self, self.rules, stale=self.stale(), stalled=self.stalled())
             if isinstance(self.rules, ShadowRules):

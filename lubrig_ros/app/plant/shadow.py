@@ -2,9 +2,9 @@
 
 In ``rig_in_loop`` with `shadow` on, the plant also takes the real rig's measured displacement
 (`measured_value`, one value per message) and pairs each with the simulated sample it answers;
-the pairing rule is documented once, in app/plant_session.py ("Shadow"). Band values and
+the pairing rule is documented once, in app/plant/session.py ("Shadow"). Band values and
 measured values are numbered in the order the rig sent them (the band values by the rules of
-app/plant_shadow.py, the measured values here, by their place in the segment); a simulated
+app/plant/shadow_rules.py, the measured values here, by their place in the segment); a simulated
 sample carries the number of the band value it was integrated with (`simulated`). Equal numbers
 pair, whichever arrives first; each pair gives the residual measured − simulated and the running
 RMS of the residuals of the segment. `take` hands the pairs made since the last call to the

@@ -1,10 +1,10 @@
 """``rig_in_loop`` with shadow: the wall-clock rules plus the numbering that pairs measured values.
 
-`ShadowRules` is `WallClockRules` (app/plant_wallclock.py) that also numbers the band values as
+`ShadowRules` is `WallClockRules` (app/plant/wallclock.py) that also numbers the band values as
 the rig sent them, remembers the number of the value each published sample was integrated with,
-and hands both sides to an app.shadow.ShadowPairing. The session uses it instead of
+and hands both sides to an app.plant.shadow.ShadowPairing. The session uses it instead of
 WallClockRules only when the plant's `shadow` setting is on, so without shadow the real-time path
-is unchanged. The rules (numbering, pairing) are documented once, in app/plant_session.py
+is unchanged. The rules (numbering, pairing) are documented once, in app/plant/session.py
 ("Shadow"). Every method is called with the session's lock held.
 """
 
@@ -15,12 +15,12 @@ from collections import deque
 import numpy as np
 from typing_extensions import override
 
-from .diagnostics import Status
-from .plant_diagnostics import HARDWARE_ID
-from .plant_output import PlantSample
-from .plant_state import PlantState
-from .plant_wallclock import WallClockRules
+from ..interface.diagnostics import Status
+from .diagnostics import HARDWARE_ID
+from .output import PlantSample
 from .shadow import ShadowPairing, ShadowSamples
+from .state import PlantState
+from .wallclock import WallClockRules
 
 
 class ShadowRules(WallClockRules):
@@ -93,7 +93,7 @@ class ShadowRules(WallClockRules):
             return emitted
 
     def take(self) -> ShadowSamples | None:
-        """The pairs made since the last call (app.shadow.ShadowPairing.take)."""
+        """The pairs made since the last call (app.plant.shadow.ShadowPairing.take)."""
         return self.pairing.take()
 
     @override

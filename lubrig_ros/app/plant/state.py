@@ -4,8 +4,8 @@
 integrator, the segment and sample counters, the band input's bookkeeping, the timing
 statistics, and the emission of samples to the sinks (`emit`: one sample of a wall-clock mode,
 into the block buffer; `emit_block`: a stepped mode's block; `advance`: one sample, restarted
-at equilibrium when its integration fails). app/plant_session.py builds the session on it and
-documents the rules; the mode rules (app/plant_modes.py, app/plant_wallclock.py) change it.
+at equilibrium when its integration fails). app/plant/session.py builds the session on it and
+documents the rules; the mode rules (app/plant/modes.py, app/plant/wallclock.py) change it.
 """
 
 from __future__ import annotations
@@ -19,12 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from ..core.integrator import RigIntegrator
-from ..core.params import ParameterError
-from ..core.presets import RunConfig
-from ..core.run import integrator_for
-from ..core.trajectory import Trajectory, TrajectorySample
-from .contract import (
+from ...core.integrator import RigIntegrator
+from ...core.params import ParameterError
+from ...core.presets import RunConfig
+from ...core.run import integrator_for
+from ...core.trajectory import Trajectory, TrajectorySample
+from ..interface.contract import (
     DEFAULT_LAG_POLICY,
     DEFAULT_MAX_LAG,
     DEFAULT_OUTPUT_BLOCK_LENGTH,
@@ -32,7 +32,8 @@ from .contract import (
     LAG_POLICIES,
     MODES,
 )
-from .plant_output import (
+from ..timing import LatencyHistogram
+from .output import (
     BeltTravel,
     BlockBuffer,
     PlantBlock,
@@ -40,7 +41,6 @@ from .plant_output import (
     derive,
     trajectory_columns,
 )
-from .timing import LatencyHistogram
 
 
 @dataclass(frozen=True)
@@ -54,7 +54,7 @@ class PlantSettings:
     lag_policy: str = DEFAULT_LAG_POLICY
     max_lag: float = DEFAULT_MAX_LAG
     output_block_length: int = DEFAULT_OUTPUT_BLOCK_LENGTH
-    shadow: bool = False  # rig_in_loop: pair the rig's measured displacement (app/plant_shadow.py)
+    shadow: bool = False  # rig_in_loop: pair the rig's measured displacement (app/plant/shadow_rules.py)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:

@@ -5,7 +5,7 @@ and `IndexedRules` (``realtime``: band values sent ahead with the sample index e
 kept in an `IndexedBand`). `run` ticks at the sample rate with absolute-time sleeps
 (app/timing.py), integrates one sample per tick within a step budget, and applies the lag
 policy when the loop falls behind (`fell_behind`). The rules are documented once, in the module
-docstring of app/plant_session.py; this module implements them over the session's state.
+docstring of app/plant/session.py; this module implements them over the session's state.
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ from collections.abc import Callable
 import numpy as np
 from typing_extensions import override
 
-from ..core.errors import InputError
-from .plant_modes import ModeRules
-from .plant_state import PlantState
-from .timing import DeadlineLoop, tight_timer_slack
+from ...core.errors import InputError
+from ..timing import DeadlineLoop, tight_timer_slack
+from .modes import ModeRules
+from .state import PlantState
 
 #: At most one "fell behind" log line per this many seconds (each one counted).
 BEHIND_LOG_S = 1.0

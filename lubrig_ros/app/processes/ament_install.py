@@ -18,7 +18,7 @@ the venv's interpreter). Rerunning is cheap and safe while something reads the i
 replaced (atomically, os.replace) only when it points elsewhere, and entries of
 share/lubrig_ros and lib/lubrig_ros that setup.py no longer lists are removed.
 
-    python -m lubrig_ros.app.ament_install [--prefix PREFIX] [--source DIR] [--check]
+    python -m lubrig_ros.app.processes.ament_install [--prefix PREFIX] [--source DIR] [--check]
 
 `--check` changes nothing and exits 1 naming what is missing or stale.
 """
@@ -150,7 +150,7 @@ def install(source: Path, prefix: Path, package: str = PACKAGE) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     """Command line: install (default) or --check."""
     parser = argparse.ArgumentParser(
-        prog="python -m lubrig_ros.app.ament_install",
+        prog="python -m lubrig_ros.app.processes.ament_install",
         description="Register lubrig_ros in an ament prefix (share/, lib/lubrig_ros) as a colcon "
         "ament_python build with --symlink-install does.",
     )

@@ -24,8 +24,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..core.params import ParameterError
-from ..core.presets import config_dir
+from ...core.params import ParameterError
+from ...core.presets import config_dir
 
 DISCOVERY_VARIABLE = "LUBRIG_DISCOVERY"
 DISCOVERY_CHOICES = ("localhost", "network")

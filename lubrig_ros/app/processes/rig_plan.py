@@ -28,7 +28,7 @@ import signal
 from dataclasses import dataclass
 from pathlib import Path
 
-from .contract import DEFAULT_NAMESPACE, RECORDER_PARTICIPANT
+from ..interface.contract import DEFAULT_NAMESPACE, RECORDER_PARTICIPANT
 
 #: The rig's nodes (console scripts of the same names); the recorder and the view are apart.
 NODES: tuple[str, ...] = ("plant", "belt_drive", "analysis")

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .contract import DEFAULT_MAX_LAG
+from ..interface.contract import DEFAULT_MAX_LAG
 
 __all__ = ["DEFAULT_MAX_LAG", "DeclaredGap", "RigTiming", "rig_timing"]
 

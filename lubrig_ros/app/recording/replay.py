@@ -18,7 +18,7 @@ Bag times given to and shown by the session are seconds from the bag's first log
 
 Pacing: message at log time t is due at wall + (t - bag) / rate, from an anchor (wall, bag)
 set when playing starts, resumes, seeks, loops or changes rate. With a `LosslessFlow`
-(app/replay_flow.py), a message of the flow-controlled topic is also held until the named
+(app/recording/replay_flow.py), a message of the flow-controlled topic is also held until the named
 subscribers have taken enough of what was sent (`Wait` with the reason, no deadline).
 """
 
@@ -29,8 +29,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from lubrig_ros.app.cdr import SampleSpan
-from lubrig_ros.app.replay_flow import LosslessFlow
+from lubrig_ros.app.interface.cdr import SampleSpan
+from lubrig_ros.app.recording.replay_flow import LosslessFlow
 from lubrig_ros.core.errors import InputError
 
 #: Fastest time scale: beyond it a 1 kHz bag is 1 MHz of messages, no replay.

@@ -29,8 +29,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from lubrig_ros.app.cdr import SampleSpan
 from lubrig_ros.app.flow import FlowGate, flow_window_problem
+from lubrig_ros.app.interface.cdr import SampleSpan
 from lubrig_ros.core.errors import InputError
 
 

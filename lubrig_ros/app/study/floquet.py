@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import floquet
-from ..core.run import simulate
-from .study_runs import study_configs
+from ...core import floquet
+from ...core.run import simulate
+from .runs import study_configs
 
 #: The case whose forced orbit is followed, and the settings of the computation.
 CASE = 8

@@ -21,9 +21,9 @@ from dataclasses import dataclass, fields
 
 from lubrig_ros.core.errors import InputError
 
-from . import cdr
-from .contract import SERVICES, Service, Topic, resolve, topic
-from .node_parameters import MODES, NODE_PARAMETERS
+from ..interface import cdr
+from ..interface.contract import SERVICES, Service, Topic, resolve, topic
+from ..interface.node_parameters import MODES, NODE_PARAMETERS
 
 #: Between a node's fully qualified name and a parameter name (Foxglove's ROS 2 bridge convention).
 PARAMETER_SEPARATOR = "."

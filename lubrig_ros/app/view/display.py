@@ -23,8 +23,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from ..core.params import ParameterError
-from .contract import resolve, validate_name
+from ...core.params import ParameterError
+from ..interface.contract import resolve, validate_name
 
 #: Messages per second (of message time) of a topic not named in DISPLAY_RATES.
 DEFAULT_DISPLAY_RATE = 50.0

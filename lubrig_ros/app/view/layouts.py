@@ -18,7 +18,7 @@ import json
 import xml.etree.ElementTree as ET
 from typing import Any
 
-from .contract import DEFAULT_NAMESPACE, resolve
+from ..interface.contract import DEFAULT_NAMESPACE, resolve
 
 #: (field of <ns>/state, label, unit) of the time plots, one panel per group.
 STATE_PLOTS: tuple[tuple[str, tuple[tuple[str, str], ...], str], ...] = (
