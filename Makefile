@@ -55,7 +55,7 @@ $(CLIENT_STAMP): $(CLIENT_DIR)/package.json $(CLIENT_DIR)/package-lock.json
 # out of date, atomically), so `ros2 run lubrig_ros plant` / `ros2 launch lubrig_ros rig.launch.py`
 # work with AMENT_PREFIX_PATH=.venv on a machine with ROS 2 (README "ros2 run and ros2 launch").
 ament-index: $(STAMP)
-	$(PY) -m lubrig_ros.app.ament_install --prefix $(VENV) --source .
+	$(PY) -m lubrig_ros.app.processes.ament_install --prefix $(VENV) --source .
 
 setup: $(STAMP) $(IFACE_STAMP) $(CLIENT_STAMP) ament-index
 

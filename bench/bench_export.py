@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lubrig_ros.app.node_parameters import DEFAULT_BLOCK_LENGTH
-from lubrig_ros.app.plant_output import BeltTravel, trajectory_columns
+from lubrig_ros.app.interface.node_parameters import DEFAULT_BLOCK_LENGTH
+from lubrig_ros.app.plant.output import BeltTravel, trajectory_columns
 from lubrig_ros.bag.layout import typestore
 from lubrig_ros.bag.writer import BagWriter, serialize_string
 from lubrig_ros.core.presets import load_case

@@ -2,9 +2,9 @@
 
 Run: .venv/bin/python bench/bench_online_wavelet.py [--updates 300]
 
-The analyzer is the analysis node's (app/analysis_session.AnalysisSession on study case 1: window,
+The analyzer is the analysis node's (app/analysis/session.AnalysisSession on study case 1: window,
 scales, full analysis every window / 8 samples), fed as the node is fed in real time: one update
-per state block of the plant's `output_block_length` samples (app/contract.py). Each run length
+per state block of the plant's `output_block_length` samples (app/interface/contract.py). Each run length
 (10 s, 100 s, 1000 s at 1 kHz) is first streamed through it (nothing is kept but the window), then
 --updates pushes are timed: mean, p50, p99 and max ms per update, and how many of them ran the
 full-window analysis. Beside it, in the same process: one whole-window transform from scratch
@@ -25,8 +25,8 @@ single_threaded_numerics()  # before numpy is imported, as a node process does
 
 import numpy as np  # noqa: E402
 
-from lubrig_ros.app.analysis_session import AnalysisSession  # noqa: E402
-from lubrig_ros.app.contract import NODE_PARAMETERS  # noqa: E402
+from lubrig_ros.app.analysis.session import AnalysisSession  # noqa: E402
+from lubrig_ros.app.interface.contract import NODE_PARAMETERS  # noqa: E402
 from lubrig_ros.app.selection import base_config  # noqa: E402
 from lubrig_ros.core.online import DIRECT_COLUMNS_MAX, OnlineWaveletAnalyzer  # noqa: E402
 from lubrig_ros.core.wavelet import cwt  # noqa: E402

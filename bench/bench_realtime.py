@@ -72,8 +72,8 @@ import numpy as np
 import psutil
 from lubrig_testkit.harness import DomainLease, ros_env
 
-from lubrig_ros.app import contract
-from lubrig_ros.app.cdr import sample_span
+from lubrig_ros.app.interface import contract
+from lubrig_ros.app.interface.cdr import sample_span
 
 BIN = Path(sys.executable).parent
 ROLES = ("plant", "belt_drive", "analysis", "recorder")
@@ -338,7 +338,7 @@ class Subscriber:
         from rclpy.node import Node
         from rclpy.signals import SignalHandlerOptions
 
-        from lubrig_ros.app.discovery import discovery_environment
+        from lubrig_ros.app.processes.discovery import discovery_environment
         from lubrig_ros.nodes.interfaces import message_class, qos_profile
 
         os.environ.update(discovery_environment(os.environ).env)  # this host only, as the rig

@@ -7,7 +7,7 @@ publish --rate R``; lubrig_testkit is installed by `make setup`) publishes what 
 per sample in realtime mode: lubrig_interfaces/RigState on /lubrig/state and std_msgs/Float64 on
 /lubrig/band_velocity, paced on the wall clock with no flow control, so what the recorder cannot
 keep up with is lost. The recorder (separate process, real DDS, default topic selection) records
-them; its accounting (sample_index per stream, app/accounting.py) gives the samples recorded and
+them; its accounting (sample_index per stream, app/recording/accounting.py) gives the samples recorded and
 missing, cross-checked against the bag read back with rosbags.
 
 --analysis: the analysis node runs beside it (realtime, reading /lubrig/state).

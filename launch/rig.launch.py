@@ -10,7 +10,7 @@ AMENT_PREFIX_PATH=.venv finds it). Like `lubrig rig`, it resolves the run once (
 default, plus duration and convention), writes it to RUN_DIR/run_config.yaml (`run_dir:=DIR`,
 default ~/.ros/lubrig/<time>) and hands that file to belt_drive, plant and analysis as their
 `config_file` parameter, with config/nodes.yaml for the node settings. Which nodes run with which
-parameters, remappings and start order is the launch plan (lubrig_ros/app/rig_plan.py), the one
+parameters, remappings and start order is the launch plan (lubrig_ros/app/processes/rig_plan.py), the one
 `lubrig rig` runs too; this file turns it into launch_ros actions (`node_actions`). The nodes run in
 `namespace` (default /lubrig, launch_ros's `namespace=`: the nodes' relative topic and service
 names resolve under it; a relative value such as `rig2` goes under an enclosing
@@ -34,7 +34,7 @@ import os
 import time
 from pathlib import Path
 
-from lubrig_ros.app.contract import DEFAULT_NAMESPACE
+from lubrig_ros.app.interface.contract import DEFAULT_NAMESPACE
 
 try:
     from ament_index_python.packages import get_package_share_directory
@@ -141,7 +141,7 @@ def _when_ready(names: dict[str, str], start: list):
 
 
 def node_actions(plan) -> dict[str, dict]:
-    """The launch_ros `Node` arguments of every node of the plan (app/rig_plan.py), by name.
+    """The launch_ros `Node` arguments of every node of the plan (app/processes/rig_plan.py), by name.
 
     The same plan `lubrig rig` turns into command lines: parameters, remappings, namespace.
     """
@@ -160,8 +160,8 @@ def node_actions(plan) -> dict[str, dict]:
 
 def _nodes(context, *_args, **_kwargs):
     """Resolve the run, write its YAML, and turn the launch plan of its nodes into actions."""
-    from lubrig_ros.app.discovery import discovery_environment
-    from lubrig_ros.app.rig_plan import CLEAN_EXITS, READY_LINES, rig_plan
+    from lubrig_ros.app.processes.discovery import discovery_environment
+    from lubrig_ros.app.processes.rig_plan import CLEAN_EXITS, READY_LINES, rig_plan
     from lubrig_ros.cli.rig import resolve_run, write_run_config
 
     value = {name: _typed(name, LaunchConfiguration(name).perform(context)) for name in ARGUMENTS}

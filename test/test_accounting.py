@@ -1,4 +1,4 @@
-"""app/accounting.py (per-stream sample accounting) and app/cdr.sample_span, without DDS."""
+"""app/recording/accounting.py (per-stream sample accounting), app/interface/cdr.sample_span; no DDS."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import pytest
 from rclpy.serialization import serialize_message
 from rosbags.typesys import Stores, get_typestore
 
-from lubrig_ros.app.accounting import StreamAccount
-from lubrig_ros.app.cdr import SampleSpan, sample_span
+from lubrig_ros.app.interface.cdr import SampleSpan, sample_span
+from lubrig_ros.app.recording.accounting import StreamAccount
 from lubrig_ros.bag.layout import typestore
 
 MS = 1_000_000  # 1 kHz: 1 ms of rig time per sample

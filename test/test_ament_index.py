@@ -3,7 +3,7 @@
 ROS-free: ament_index_python (in the venv) finds the package with the venv on AMENT_PREFIX_PATH,
 which is what `ros2 run lubrig_ros <node>` and `ros2 launch lubrig_ros rig.launch.py` look up on a
 machine with ROS 2 (ros2pkg: PREFIX/lib/<package>/<executable>, the share directory for launch
-files). The registration itself (lubrig_ros/app/ament_install.py) is checked in a scratch prefix.
+files). The registration itself (lubrig_ros/app/processes/ament_install.py) is checked in a scratch prefix.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from ament_index_python.packages import get_package_prefix, get_package_share_directory
 
-from lubrig_ros.app import ament_install
+from lubrig_ros.app.processes import ament_install
 
 ROOT = Path(__file__).resolve().parents[1]
 PREFIX = Path(sys.prefix)

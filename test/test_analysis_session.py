@@ -1,4 +1,4 @@
-"""The analysis node's rules (app/analysis_session.py) without DDS: pairing, odd input, outputs."""
+"""The analysis node's rules (app/analysis/session.py) without DDS: pairing, odd input, outputs."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from lubrig_ros.app.analysis_session import AnalysisSession, AnalysisSettings, render_power
+from lubrig_ros.app.analysis.session import AnalysisSession, AnalysisSettings, render_power
 from lubrig_ros.core.presets import default_config, load_case
 from lubrig_ros.core.run import simulate
 from lubrig_ros.core.stability import linear_stability

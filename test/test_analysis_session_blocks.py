@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from lubrig_ros.app.analysis_session import AnalysisSession, AnalysisSettings
+from lubrig_ros.app.analysis.session import AnalysisSession, AnalysisSettings
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
 from lubrig_ros.core.stability import linear_stability

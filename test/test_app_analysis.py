@@ -1,4 +1,4 @@
-"""app/rundir.py (one run directory) and app/analysis.py (one wavelet policy), without the CLI."""
+"""app/rundir.py (one run directory) and app/analysis/policy.py (one wavelet policy), without the CLI."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from lubrig_ros.app import rundir
-from lubrig_ros.app.analysis import (
+from lubrig_ros.app.analysis.policy import (
     DEFAULT_POLICY,
     MAX_POWER_POINTS,
     AnalysisError,

@@ -3,9 +3,10 @@
 Tiers: core 0, app 1, bag + figures 2, nodes + report + sweep + fit 3, cli 4 (modules directly in
 lubrig_ros/, e.g. its __init__ with __version__, count as tier 0). A module may import its own
 subpackage and lower tiers, never a higher tier and never a same-tier sibling package; no
-import cycle between modules; core and app import no ROS package. Every import counts, also
-those inside functions (a lazy import still ties the two modules together). No module holds
-more than MAX_MODULE_LINES lines.
+import cycle between modules; core and app (with every subpackage of theirs) import no ROS
+package. Every import counts, also those inside functions (a lazy import still ties the two
+modules together). app/ holds at its top level only its subpackages by purpose and the modules
+named in APP_MODULES. No module holds more than MAX_MODULE_LINES lines.
 """
 
 from __future__ import annotations
@@ -148,10 +149,10 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
-def ros_imports() -> set[tuple[str, str]]:
-    """(module, ROS module) for every ROS import in core/ and app/."""
+def ros_imports(graph: dict[str, set[str]] | None = None) -> set[tuple[str, str]]:
+    """(module, ROS module) for every ROS import in core/ and app/, their subpackages included."""
     bad = set()
-    for importer, targets in imports().items():
+    for importer, targets in (imports() if graph is None else graph).items():
         if _subpackage(importer) in ROS_FREE:
             bad.update((importer, t) for t in targets if ROS_MODULE.match(t.split(".")[0]))
     return bad
@@ -163,12 +164,17 @@ def test_the_walk_sees_the_package() -> None:
     assert "lubrig_ros.core.integrator" in graph["lubrig_ros.core.run"]  # from .integrator import …
     assert "lubrig_ros.app.rundir" in graph["lubrig_ros.cli.simulate"]  # from ..app import rundir
     assert "lubrig_ros.core.presets" in graph["lubrig_ros.app.selection"]  # relative, two dots
+    assert "lubrig_ros.app.interface.contract" in graph["lubrig_ros.app.plant.config"]  # ..interface
+    assert "lubrig_ros.core.presets" in graph["lubrig_ros.app.plant.config"]  # relative, three dots
+    assert "lubrig_ros.app.plant.modes" in graph["lubrig_ros.app.plant.session"]  # same subpackage
     assert ROS_MODULE.match("rclpy") and ROS_MODULE.match("std_msgs") and not ROS_MODULE.match("rosbags")
 
 
 def test_checks_catch_what_they_are_meant_to() -> None:
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert cycles({"a": {"b"}, "b": set()}) == []
+    nested = {"lubrig_ros.app.plant.session": {"rclpy.node", "numpy"}, "lubrig_ros.nodes.plant": {"rclpy"}}
+    assert ros_imports(nested) == {("lubrig_ros.app.plant.session", "rclpy.node")}
 
 
 def test_no_import_cycle() -> None:
@@ -187,6 +193,19 @@ def test_no_expected_violation_left() -> None:
 
 def test_core_and_app_are_ros_free() -> None:
     assert not ros_imports(), sorted(ros_imports())
+
+
+#: app/'s subpackages, one purpose each (docs/architecture.md).
+APP_SUBPACKAGES = {"analysis", "interface", "plant", "processes", "recording", "study", "view"}
+#: The modules directly in app/: each a purpose of its own.
+APP_MODULES = {"belt_session", "fileio", "flow", "rundir", "selection", "timing"}
+
+
+def test_app_top_level_holds_its_subpackages_and_named_modules() -> None:
+    app = ROOT / "app"
+    entries = {p.name for p in app.iterdir() if p.suffix == ".py" or (p.is_dir() and p.name != "__pycache__")}
+    assert entries == {"__init__.py", *APP_SUBPACKAGES, *(f"{m}.py" for m in APP_MODULES)}
+    assert all((app / sub / "__init__.py").is_file() for sub in APP_SUBPACKAGES)
 
 
 #: Lines a module of the package may hold: past this it holds more than one job.

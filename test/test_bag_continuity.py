@@ -15,7 +15,7 @@ from lubrig_testkit.cli import lubrig
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
-from lubrig_ros.app.plant_output import BLOCK_FIELDS
+from lubrig_ros.app.plant.output import BLOCK_FIELDS
 from lubrig_ros.bag import BagWriter
 from lubrig_ros.bag.meta import metadata_dict, metadata_texts
 from lubrig_ros.bag.verify import verify_bag

@@ -206,7 +206,7 @@ def test_filter_then_merge_gives_back_the_topics(run: tuple[Path, Path], tmp_pat
 
 def test_column_units_have_one_home() -> None:
     """Every sample field has its unit in core.schema; timeseries.csv names its columns the same way."""
-    from lubrig_ros.app.plant_output import BLOCK_FIELDS
+    from lubrig_ros.app.plant.output import BLOCK_FIELDS
     from lubrig_ros.bag.export import columns_of
     from lubrig_ros.core.schema import SAMPLE_UNITS, unit_column
     from lubrig_ros.core.trajectory import Trajectory
@@ -226,7 +226,7 @@ def test_realtime_layout_rows(tmp_path: Path) -> None:
     store = typestore()
     types = store.types
     header, stamp = types["std_msgs/msg/Header"], types["builtin_interfaces/msg/Time"]
-    from lubrig_ros.app.plant_output import BLOCK_FIELDS
+    from lubrig_ros.app.plant.output import BLOCK_FIELDS
 
     fields = BLOCK_FIELDS
     base = 1_800_000_000 * 10**9  # a wall-clock stamp, as a realtime plant's

@@ -30,7 +30,7 @@ from lubrig_interfaces.msg import (
     StabilityFlags,
     WaveletFrame,
 )
-from lubrig_ros.app.plant_output import BLOCK_FIELDS, BeltTravel, trajectory_columns
+from lubrig_ros.app.plant.output import BLOCK_FIELDS, BeltTravel, trajectory_columns
 from lubrig_ros.bag import BagWriter, read_arrays
 from lubrig_ros.bag.writer import serialize_string
 from lubrig_ros.core.presets import load_case

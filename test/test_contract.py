@@ -1,4 +1,4 @@
-"""The topic/service/parameter contract (app/contract.py): names, the one namespace validator,
+"""The topic/service/parameter contract (app/interface/contract.py): names, the one namespace validator,
 and the documentation and config/nodes.yaml that must agree with it."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from lubrig_ros.app import contract, contract_docs
+from lubrig_ros.app.interface import contract, contract_docs
 from lubrig_ros.core.params import ParameterError
 
 VALID = ["/lubrig", "/", "/rig_2", "/a/b2", "/_", "/A/_x", "/" + "a" * 244]
@@ -151,7 +151,7 @@ def test_a_stale_table_is_detected(tmp_path):
     topics = tmp_path / "docs" / "topics.md"
     topics.write_text(topics.read_text().replace("keep_last 1000", "keep_last 999", 1))
     assert contract_docs.problems(tmp_path) == [
-        "docs/topics.md: generated tables differ from app/contract.py"
+        "docs/topics.md: generated tables differ from app/interface/contract.py"
     ]
     assert contract_docs.main([str(tmp_path), "--check"]) == 1
     assert contract_docs.main([str(tmp_path)]) == 0  # rewrite

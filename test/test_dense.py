@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lubrig_ros.app.study_runs import study_configs
+from lubrig_ros.app.study.runs import study_configs
 from lubrig_ros.core.dense import mu_extremes
 from lubrig_ros.core.friction import friction_peak
 from lubrig_ros.core.integrator import RigIntegrator

@@ -1,4 +1,4 @@
-"""Discovery kept on this host by default (app/discovery.py): the environment rig processes get."""
+"""Discovery kept on this host by default (app/processes/discovery.py): the environment rig processes get."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from lubrig_ros.app.discovery import (
+from lubrig_ros.app.processes.discovery import (
     DISCOVERY_VARIABLE,
     PROFILE_VARIABLE,
     RANGE_VARIABLE,

@@ -1,8 +1,13 @@
-"""Who holds a namespace, who drives the band (app/discovery.py): the rules on plain graph data."""
+"""Who holds a namespace, who drives the band (app/processes/discovery.py): the rules on plain graph data."""
 
 from __future__ import annotations
 
-from lubrig_ros.app.discovery import UNKNOWN_NODE, band_source_problem, extra_publishers, rig_occupants
+from lubrig_ros.app.processes.discovery import (
+    UNKNOWN_NODE,
+    band_source_problem,
+    extra_publishers,
+    rig_occupants,
+)
 
 RIG = ("plant", "belt_drive", "analysis", "lubrig_recorder")
 

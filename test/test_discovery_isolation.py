@@ -1,4 +1,4 @@
-"""A rig kept on this host cannot be reached from another network (app/discovery.py).
+"""A rig kept on this host cannot be reached from another network (app/processes/discovery.py).
 
 An "other host" is a network namespace joined to this one by a veth pair: a participant there,
 told this host's address (ROS_STATIC_PEERS), publishes band input. A subscriber with the rig's
@@ -19,7 +19,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from lubrig_ros.app.discovery import discovery_environment
+from lubrig_ros.app.processes.discovery import discovery_environment
 
 pytestmark = pytest.mark.ros
 

@@ -11,7 +11,7 @@ import pytest
 from lubrig_testkit.figures import colormap_names, overlapping_texts, texts_outside
 from matplotlib.collections import PathCollection, QuadMesh
 
-from lubrig_ros.app.analysis import DEFAULT_POLICY, analyze_displacement
+from lubrig_ros.app.analysis.policy import DEFAULT_POLICY, analyze_displacement
 from lubrig_ros.core.friction import friction_coefficient, friction_minimum, friction_peak
 from lubrig_ros.core.params import RigParameters
 from lubrig_ros.core.presets import RunConfig, load_case

@@ -17,7 +17,7 @@ from lubrig_ros.core.friction_laws import BUILTIN_LAWS, law_named, law_parameter
 
 # module -> packages it must not import (the plant needs numba: it integrates)
 LIGHT = {
-    "lubrig_ros.app.contract": ("numba", "scipy"),
+    "lubrig_ros.app.interface.contract": ("numba", "scipy"),
     "lubrig_ros.core.presets": ("numba", "scipy"),
     "lubrig_ros.nodes.belt_drive": ("numba", "scipy"),
     "lubrig_ros.nodes.recorder": ("numba", "scipy"),
@@ -72,7 +72,7 @@ FIRST_UPDATE = """
 import sys
 import numpy as np
 import lubrig_ros.nodes.analysis  # what the node has imported before it runs
-from lubrig_ros.app.analysis_session import AnalysisSession
+from lubrig_ros.app.analysis.session import AnalysisSession
 from lubrig_ros.core.presets import load_case
 session = AnalysisSession(load_case(1))
 before = set(sys.modules)

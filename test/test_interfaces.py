@@ -21,8 +21,8 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Float64
 
-from lubrig_ros.app import cdr
-from lubrig_ros.app.plant_output import BLOCK_FIELDS
+from lubrig_ros.app.interface import cdr
+from lubrig_ros.app.plant.output import BLOCK_FIELDS
 from lubrig_ros.core.errors import InputError
 from lubrig_ros.core.schema import SHADOW_FIELDS
 
@@ -427,7 +427,7 @@ def _sample_lines(name: str) -> dict[str, tuple[str, str]]:
 
 
 def test_the_msg_files_carry_the_schema_s_sample_fields_in_order_with_their_units():
-    from lubrig_ros.app.plant_output import BLOCK_FIELDS
+    from lubrig_ros.app.plant.output import BLOCK_FIELDS
     from lubrig_ros.core.schema import SAMPLE_FIELDS, SAMPLE_UNITS
 
     expected = {f.name: f.unit for f in SAMPLE_FIELDS}

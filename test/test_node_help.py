@@ -7,7 +7,7 @@ import subprocess
 import pytest
 from lubrig_testkit.harness import BIN
 
-from lubrig_ros.app.contract import NODE_PARAMETERS
+from lubrig_ros.app.interface.contract import NODE_PARAMETERS
 
 
 @pytest.mark.parametrize("name", sorted(NODE_PARAMETERS))

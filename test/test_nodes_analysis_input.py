@@ -12,7 +12,7 @@ import time
 from std_msgs.msg import Float64, Float64MultiArray, UInt8
 
 from lubrig_interfaces.msg import RigState, RigStateBlock, StabilityFlags, WaveletFrame
-from lubrig_ros.app import contract
+from lubrig_ros.app.interface import contract
 from lubrig_ros.nodes import common
 from lubrig_ros.nodes.interfaces import qos_profile
 

@@ -1,10 +1,10 @@
-"""Live nodes declare exactly the contract's parameters (app/contract.py), over real DDS."""
+"""Live nodes declare exactly the contract's parameters (app/interface/contract.py), over real DDS."""
 
 from __future__ import annotations
 
 from rcl_interfaces.srv import DescribeParameters, ListParameters
 
-from lubrig_ros.app import contract
+from lubrig_ros.app.interface import contract
 
 STANDARD = {"use_sim_time", "start_type_description_service"}  # rclpy's own
 NS = contract.DEFAULT_NAMESPACE  # the nodes' namespace when started without -r __ns:=...

@@ -15,8 +15,8 @@ from lubrig_testkit.harness import wait_until
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import DescribeParameters
 
-from lubrig_ros.app import contract
-from lubrig_ros.app.rig_plan import READY_LINES
+from lubrig_ros.app.interface import contract
+from lubrig_ros.app.processes.rig_plan import READY_LINES
 
 NS = contract.DEFAULT_NAMESPACE
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from std_msgs.msg import Bool
 
-from lubrig_ros.app import contract
+from lubrig_ros.app.interface import contract
 from lubrig_ros.nodes import common
 
 NS = "/lubrig"

@@ -18,7 +18,7 @@ from lubrig_testkit.crosscheck import read_mcap
 from std_msgs.msg import Bool
 
 from lubrig_interfaces.msg import BandVelocityBlock, RigState
-from lubrig_ros.app import contract
+from lubrig_ros.app.interface import contract
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import band_samples, simulate
 from lubrig_ros.nodes import common

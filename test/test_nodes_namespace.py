@@ -19,7 +19,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, Float64
 
 from lubrig_interfaces.msg import BandVelocityBlock
-from lubrig_ros.app import contract
+from lubrig_ros.app.interface import contract
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
 from lubrig_ros.nodes import common

@@ -4,7 +4,7 @@ belt_drive, plant and analysis run a rig; every parameter each node lists gets v
 kind (NaN, ±inf, huge, tiny at the double-precision floor, negative, zero, wrong types, arrays),
 then the plant is reset so that the accepted rig parameters apply. Asserted: no node dies or stops
 answering, a non-finite number is never accepted, every accepted value is inside the parameter's
-documented physical range (app/node_parameters.py, from core/schema.py), every refusal carries a
+documented physical range (app/interface/node_parameters.py, from core/schema.py), every refusal carries a
 reason that names the parameter, the run configuration the plant publishes after the reset is a
 valid one (nothing outside a range was fabricated into it), and nothing any node publishes holds a
 non-finite number.
@@ -21,7 +21,7 @@ import yaml
 from rcl_interfaces.srv import ListParameters
 from std_srvs.srv import Trigger
 
-from lubrig_ros.app import contract
+from lubrig_ros.app.interface import contract
 from lubrig_ros.core.presets import from_mapping
 from lubrig_ros.nodes.interfaces import message_class, qos_profile
 

@@ -12,7 +12,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from lubrig_interfaces.msg import FlowProgress
-from lubrig_ros.app import contract
+from lubrig_ros.app.interface import contract
 from lubrig_ros.bag.reader import read_messages
 from lubrig_ros.bag.writer import typestore
 from lubrig_ros.nodes import common

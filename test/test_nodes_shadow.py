@@ -3,7 +3,7 @@
 The "real rig" (lubrig_testkit.shadow_rig, a process of its own) is the independent reference
 integrator (scipy LSODA) with parameters of the test's choosing; it sends its band ahead in
 blocks and each measured displacement after the plant has taken that band value. The plant pairs
-them by number (app/plant_session.py, "Shadow"), so nothing here depends on timing: the expected
+them by number (app/plant/session.py, "Shadow"), so nothing here depends on timing: the expected
 residual of every pair is computed independently — the rig's measured value minus the reference
 integrator run with the plant's parameters over the band sequence the plant recorded it
 integrated — and the recorded one must equal it to the integrators' tolerance:
@@ -31,7 +31,7 @@ from lubrig_testkit.harness import Processes
 from lubrig_testkit.reference_rig import ReferenceRig, reference_state
 
 from lubrig_interfaces.msg import StabilityFlags, WaveletFrame
-from lubrig_ros.app.contract import DEFAULT_NAMESPACE, resolve
+from lubrig_ros.app.interface.contract import DEFAULT_NAMESPACE, resolve
 from lubrig_ros.bag.reader import read_arrays
 from lubrig_ros.cli.rig import recorder_command
 from lubrig_ros.core.presets import load_case

@@ -31,8 +31,8 @@ from std_msgs.msg import Bool
 from std_srvs.srv import Trigger
 
 from lubrig_interfaces.msg import BandVelocityBlock, StabilityFlags, WaveletFrame
-from lubrig_ros.app import contract
-from lubrig_ros.app.plant_output import BLOCK_FIELDS
+from lubrig_ros.app.interface import contract
+from lubrig_ros.app.plant.output import BLOCK_FIELDS
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
 from lubrig_ros.nodes import common

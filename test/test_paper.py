@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from lubrig_ros.app.study import STATEMENTS
+from lubrig_ros.app.study.statements import STATEMENTS
 from lubrig_ros.cli.main import main
 from lubrig_ros.cli.paper import committed_scan
 from lubrig_ros.core.params import CONVENTIONS

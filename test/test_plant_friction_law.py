@@ -13,8 +13,8 @@ from dataclasses import fields
 import numpy as np
 import pytest
 
-from lubrig_ros.app import contract
-from lubrig_ros.app.plant_session import (
+from lubrig_ros.app.interface import contract
+from lubrig_ros.app.plant.session import (
     PlantSession,
     PlantSettings,
     config_from,

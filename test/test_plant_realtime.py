@@ -13,8 +13,8 @@ import time
 import numpy as np
 import pytest
 
-from lubrig_ros.app.plant_output import PlantBlock, PlantSample
-from lubrig_ros.app.plant_session import PlantSession, PlantSettings
+from lubrig_ros.app.plant.output import PlantBlock, PlantSample
+from lubrig_ros.app.plant.session import PlantSession, PlantSettings
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import band_samples, simulate
 

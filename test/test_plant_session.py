@@ -1,4 +1,4 @@
-"""The plant's rules (app/plant_session.py) in all three modes, without DDS.
+"""The plant's rules (app/plant/session.py) in all three modes, without DDS.
 
 Sim sequencing equals core.run.simulate bit for bit; band input rejection, hold and staleness;
 pause/reset; a failed sample restarts the rig at the next sample time; timing statistics;
@@ -14,8 +14,8 @@ import time
 import numpy as np
 import pytest
 
-from lubrig_ros.app import cdr
-from lubrig_ros.app.plant_session import (
+from lubrig_ros.app.interface import cdr
+from lubrig_ros.app.plant.session import (
     CONFIG_PARAMETERS,
     RUNTIME_PARAMETERS,
     PlantSample,

@@ -1,4 +1,4 @@
-"""The plant's block path (app/plant_session.py band_block / on_block), without DDS.
+"""The plant's block path (app/plant/session.py band_block / on_block), without DDS.
 
 A sim run fed in blocks of any length equals core.run.simulate bit for bit, one PlantBlock per
 band block (the first with the initial state); segments and sample indices across resets; stale
@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from lubrig_ros.app.plant_session import PlantBlock, PlantSample, PlantSession, PlantSettings
+from lubrig_ros.app.plant.session import PlantBlock, PlantSample, PlantSession, PlantSettings
 from lubrig_ros.core.presets import default_config, load_case
 from lubrig_ros.core.run import band_samples, simulate
 

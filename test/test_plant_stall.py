@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from lubrig_ros.app.plant_session import STALL_S, PlantSession, PlantSettings
+from lubrig_ros.app.plant.session import STALL_S, PlantSession, PlantSettings
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import band_samples
 

@@ -81,7 +81,7 @@ def _publisher(procs):
 
 def _listen_progress(probe) -> list:
     from lubrig_interfaces.msg import FlowProgress
-    from lubrig_ros.app.contract import documented_topics
+    from lubrig_ros.app.interface.contract import documented_topics
     from lubrig_ros.nodes.interfaces import qos_profile
 
     spec = documented_topics("/lubrig")["/lubrig/flow_progress"]

@@ -18,7 +18,7 @@ from lubrig_testkit.crosscheck import read_mcap, read_rosbags
 from lubrig_testkit.harness import PYTHON
 from lubrig_testkit.synthetic import PER_SAMPLE_TOPICS, SCALAR_TOPICS, START_NS
 
-from lubrig_ros.app.contract import resolve
+from lubrig_ros.app.interface.contract import resolve
 from lubrig_ros.bag import BagError, check_bag, repair_bag
 
 SOURCE_TOPICS = (*PER_SAMPLE_TOPICS, *SCALAR_TOPICS)

@@ -18,7 +18,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
 from lubrig_interfaces.msg import FlowProgress, RigStateBlock
-from lubrig_ros.app.contract import resolve, select_topics
+from lubrig_ros.app.interface.contract import resolve, select_topics
 from lubrig_ros.bag.reader import RIG_STATE_FIELDS
 from lubrig_ros.bag.recording import SIM_HOLD_NS, WALL_CLOCK_NS, RecordingSession
 

@@ -23,7 +23,7 @@ from std_srvs.srv import Trigger
 
 from lubrig_interfaces.msg import RigStateBlock
 from lubrig_interfaces.srv import Seek, SetRate
-from lubrig_ros.app.plant_output import BLOCK_FIELDS
+from lubrig_ros.app.plant.output import BLOCK_FIELDS
 from lubrig_ros.bag import BagWriter, check_bag, read_arrays
 
 T0 = 4_000_000_000

@@ -10,7 +10,7 @@ import numpy as np
 from rclpy.serialization import serialize_message
 
 from lubrig_interfaces.msg import RigState, RigStateBlock
-from lubrig_ros.app.plant_output import BLOCK_FIELDS
+from lubrig_ros.app.plant.output import BLOCK_FIELDS
 from lubrig_ros.bag import BagWriter
 from lubrig_ros.bag.writer import typestore
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import pytest
 
-from lubrig_ros.app.cdr import SampleSpan
-from lubrig_ros.app.replay_flow import LosslessFlow
-from lubrig_ros.app.replay_session import Done, Entry, Publish, ReplaySession, Wait
+from lubrig_ros.app.interface.cdr import SampleSpan
+from lubrig_ros.app.recording.replay import Done, Entry, Publish, ReplaySession, Wait
+from lubrig_ros.app.recording.replay_flow import LosslessFlow
 from lubrig_ros.core.errors import InputError
 
 T0 = 10_000_000_000

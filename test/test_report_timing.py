@@ -21,8 +21,8 @@ from lubrig_testkit.figures import overlapping_texts, texts_outside
 from matplotlib.image import imread
 
 import lubrig_ros.bag.layout as layout
-from lubrig_ros.app.lateness import DEFAULT_MAX_LAG, rig_timing
-from lubrig_ros.app.plant_output import BLOCK_FIELDS, BeltTravel, trajectory_columns
+from lubrig_ros.app.plant.output import BLOCK_FIELDS, BeltTravel, trajectory_columns
+from lubrig_ros.app.recording.lateness import DEFAULT_MAX_LAG, rig_timing
 from lubrig_ros.bag import BagWriter, read_arrays
 from lubrig_ros.bag.layout import interface_definitions, typestore
 from lubrig_ros.bag.writer import serialize_string

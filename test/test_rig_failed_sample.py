@@ -19,7 +19,7 @@ import pytest
 import yaml
 from lubrig_testkit.crosscheck import read_mcap, read_rosbags
 
-from lubrig_ros.app.contract import EXIT_INTEGRATION_FAILED
+from lubrig_ros.app.interface.contract import EXIT_INTEGRATION_FAILED
 
 V_FAIL = 1.5e-7  # m/s: the law has no value above this relative velocity
 

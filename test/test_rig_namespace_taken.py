@@ -20,7 +20,7 @@ from lubrig_testkit.crosscheck import read_rosbags
 from lubrig_testkit.harness import wait_until
 
 from lubrig_interfaces.msg import BandVelocityBlock
-from lubrig_ros.app import contract
+from lubrig_ros.app.interface import contract
 from lubrig_ros.bag.verify import verify_bag
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate

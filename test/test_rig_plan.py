@@ -1,4 +1,4 @@
-"""The launch plan (app/rig_plan.py): one wiring that `lubrig rig` and launch/rig.launch.py both run."""
+"""The launch plan (app/processes/rig_plan.py): one wiring for `lubrig rig` and launch/rig.launch.py."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ from pathlib import Path
 
 import yaml
 
-from lubrig_ros.app.contract import NODE_PARAMETERS, RECORDER_PARTICIPANT
-from lubrig_ros.app.rig_plan import NODES, rig_plan, ros_value
+from lubrig_ros.app.interface.contract import NODE_PARAMETERS, RECORDER_PARTICIPANT
+from lubrig_ros.app.processes.rig_plan import NODES, rig_plan, ros_value
 from lubrig_ros.core.presets import config_dir
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,7 +31,7 @@ def test_recorded_sim_plan_holds_the_run_for_the_recorder():
     assert plant["publish_clock"] is True and plant["band_source"] == "belt_drive"
     assert all(n.parameters["use_sim_time"] is True for n in plan.nodes)
     assert plan.node("plant").after == ()  # the recorder holds the run: all start at once
-    for node in plan.nodes:  # every parameter is one the node declares (app/contract.py)
+    for node in plan.nodes:  # every parameter is one the node declares (app/interface/contract.py)
         declared = {p.name for p in NODE_PARAMETERS[node.name]} | {"use_sim_time"}
         assert set(node.parameters) <= declared, node.name
 

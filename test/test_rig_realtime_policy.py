@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from lubrig_ros.app.contract import EXIT_REAL_TIME_NOT_HELD
+from lubrig_ros.app.interface.contract import EXIT_REAL_TIME_NOT_HELD
 
 DURATION = 6.0
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lubrig_ros.app import plant_output
-from lubrig_ros.app.plant_output import BLOCK_FIELDS, QUANTITIES, PlantSample, derive, derive_columns
+from lubrig_ros.app.plant import output as plant_output
+from lubrig_ros.app.plant.output import BLOCK_FIELDS, QUANTITIES, PlantSample, derive, derive_columns
 from lubrig_ros.core.schema import SAMPLE_FIELDS, SAMPLE_UNITS, SampleField
 
 

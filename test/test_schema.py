@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from lubrig_ros.app import contract
-from lubrig_ros.app.plant_config import config_from
+from lubrig_ros.app.interface import contract
+from lubrig_ros.app.plant.config import config_from
 from lubrig_ros.core import schema
 from lubrig_ros.core.friction_laws import law_names, law_parameters
 from lubrig_ros.core.params import ParameterError

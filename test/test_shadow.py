@@ -1,6 +1,6 @@
 """Shadow mode without DDS: the pairing of measured values with samples, and a rig_in_loop session.
 
-What is asserted is the rule of app/plant_session.py ("Shadow"): a measured value pairs with the
+What is asserted is the rule of app/plant/session.py ("Shadow"): a measured value pairs with the
 sample integrated with the band value of the same number, whichever comes first; rejected
 measured values keep their number; held samples are not paired; a reset restarts the numbering.
 The session runs its real-time loop for real (a few hundred ms); nothing about its speed is
@@ -15,10 +15,10 @@ import time
 import numpy as np
 import pytest
 
-from lubrig_ros.app import contract
-from lubrig_ros.app.plant_output import PlantBlock
-from lubrig_ros.app.plant_session import PlantSession, PlantSettings
-from lubrig_ros.app.shadow import ShadowPairing, measured_velocity
+from lubrig_ros.app.interface import contract
+from lubrig_ros.app.plant.output import PlantBlock
+from lubrig_ros.app.plant.session import PlantSession, PlantSettings
+from lubrig_ros.app.plant.shadow import ShadowPairing, measured_velocity
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import band_samples, integrator_for
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from lubrig_ros.app import study_checks as check
-from lubrig_ros.app.study_runs import GONE_FRACTIONS
+from lubrig_ros.app.study import checks as check
+from lubrig_ros.app.study.runs import GONE_FRACTIONS
 from lubrig_ros.core.params import RigParameters
 
 RIG = RigParameters()

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from functools import cache
 
-from lubrig_ros.app import study, study_runs
+from lubrig_ros.app.study import runs as study_runs
+from lubrig_ros.app.study import statements as study
 from lubrig_ros.cli.paper import committed_scan
 from lubrig_ros.core.params import RigParameters
 from lubrig_ros.core.presets import load_case

@@ -14,7 +14,7 @@ import pytest
 import yaml
 from scipy.stats import qmc
 
-from lubrig_ros.app.analysis import analyze_displacement
+from lubrig_ros.app.analysis.policy import analyze_displacement
 from lubrig_ros.cli.main import main
 from lubrig_ros.core.presets import from_mapping, load_case
 from lubrig_ros.core.run import simulate, summarize
@@ -80,7 +80,7 @@ def test_points_equal_direct_core_runs(tmp_path):
         for key in SUMMARY_KEYS:
             assert row[key] == summary[key], key
         assert row["mu_range"] == summary["mu_max"] - summary["mu_min"]
-        # the one wavelet policy (app/analysis.py: second half, rate/4 … 3/window) on the direct run
+        # the one wavelet policy (app/analysis/policy.py: second half, rate/4 … 3/window) on the direct run
         components = analyze_displacement(
             trajectory.time, trajectory.displacement, 1000.0, config.band.fundamental_hz
         ).components[:3]

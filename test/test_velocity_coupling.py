@@ -126,8 +126,8 @@ def test_velocity_coupling_is_a_sweep_axis() -> None:
 
 
 def test_plant_parameter_velocity_coupling() -> None:
-    from lubrig_ros.app.contract import parameter
-    from lubrig_ros.app.plant_session import config_from, parameter_defaults
+    from lubrig_ros.app.interface.contract import parameter
+    from lubrig_ros.app.plant.session import config_from, parameter_defaults
 
     base = load_case(8)
     assert parameter_defaults(base)["velocity_coupling"] == 0.0  # no explicit γ in the preset

@@ -1,4 +1,4 @@
-"""What a Foxglove client may do through `view --allow-*`: names and checks (app/view_access.py)."""
+"""What a Foxglove client may do through `view --allow-*`: names and checks (app/view/access.py)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import struct
 
 import pytest
 
-from lubrig_ros.app import view_access
-from lubrig_ros.app.contract import SERVICES
-from lubrig_ros.app.node_parameters import NODE_PARAMETERS
+from lubrig_ros.app.interface.contract import SERVICES
+from lubrig_ros.app.interface.node_parameters import NODE_PARAMETERS
+from lubrig_ros.app.view import access as view_access
 from lubrig_ros.core.errors import InputError
 
 

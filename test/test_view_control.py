@@ -1,6 +1,6 @@
 """The view's opt-in ways back to the rig, driven by Foxglove's own client against real nodes.
 
-`view --allow-services | --allow-parameters | --allow-publish` (app/view_access.py,
+`view --allow-services | --allow-parameters | --allow-publish` (app/view/access.py,
 nodes/view_control.py, nodes/view_parameters.py): the npm client of test/support/foxglove_client
 calls the plant's pause and reset, reads and sets plant parameters (a bad value is refused with the
 node's reason and left unchanged), publishes band velocity into a rig-in-the-loop plant, and sees

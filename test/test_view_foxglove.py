@@ -29,7 +29,7 @@ from pathlib import Path
 
 import pytest
 
-from lubrig_ros.app.plant_output import BLOCK_FIELDS
+from lubrig_ros.app.plant.output import BLOCK_FIELDS
 
 NS = "/lubrig"
 CLIENT_DIR = Path(__file__).parent / "support" / "foxglove_client"
@@ -126,9 +126,9 @@ def _assert_shown_samples(states: list[dict], rate: float) -> None:
     The rate rule's samples are >= 1/rate apart, and every other sample shown lies between two of
     them (before the next is due), so they are found again greedily; each sample in between holds
     a value outside the range of the two around it, in some field of EXTREME_FIELDS, and there
-    are at most two per field in each interval (app/display.py, Envelope).
+    are at most two per field in each interval (app/view/display.py, Envelope).
     """
-    from lubrig_ros.app.display import EXTREME_FIELDS
+    from lubrig_ros.app.view.display import EXTREME_FIELDS
 
     period = round(1e9 / rate)
     anchors: list[int] = []

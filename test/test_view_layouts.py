@@ -1,4 +1,4 @@
-"""Live view without ROS: decimation rules (app/display.py) and the shipped viewer layouts.
+"""Live view without ROS: decimation rules (app/view/display.py) and the shipped viewer layouts.
 
 The layouts are checked against what they name: every topic is a contract topic, every field
 exists in that topic's message definition (lubrig_interfaces/msg/*.msg, the installed .msg of
@@ -17,7 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from lubrig_ros.app import contract, display, layouts
+from lubrig_ros.app.interface import contract
+from lubrig_ros.app.view import display, layouts
 from lubrig_ros.core.params import ParameterError
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -25,8 +25,8 @@ import numpy as np
 
 from ..core.params import ParameterError
 from ..core.profiles import BandProfile, ProfileParameters, band_range_problem, profile_to_dict
-from . import cdr
 from .flow import FlowGate
+from .interface import cdr
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..core.params import ParameterError
-from .contract import BLOCK_QOS, resolve, validate_namespace
+from .interface.contract import BLOCK_QOS, resolve, validate_namespace
 
 
 def qualified_name(namespace: str, name: str) -> str:

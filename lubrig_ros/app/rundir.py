@@ -6,7 +6,7 @@ Layout (docs/simulate.md):
   Trajectory.COLUMNS (field → column name with its SI unit), so the schema has one source;
 - config.yaml — the full RunConfig (feed it back with --config to repeat the run);
 - summary.json — stationary measures (core.run.summarize) plus optional sections such as
-  "wavelet" (app/analysis.py); written atomically;
+  "wavelet" (app/analysis/policy.py); written atomically;
 - figures (*.png) — drawn by the callers (figures/), not here: this layer has no matplotlib.
 """
 

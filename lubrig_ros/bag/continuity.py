@@ -14,8 +14,8 @@ import struct
 
 import yaml
 
-from lubrig_ros.app import contract
-from lubrig_ros.app.cdr import block_skipped
+from lubrig_ros.app.interface import contract
+from lubrig_ros.app.interface.cdr import block_skipped
 from lubrig_ros.bag.findings import CONTINUITY, StreamReport, Verification
 from lubrig_ros.bag.frames import Channel, RecordError, Schema
 from lubrig_ros.bag.layout import RUN_CONFIG_KEY

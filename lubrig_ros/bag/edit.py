@@ -23,7 +23,7 @@ from pathlib import Path
 
 import yaml
 
-from lubrig_ros.app.cdr import INDEXED_TYPES, sample_span
+from lubrig_ros.app.interface.cdr import INDEXED_TYPES, sample_span
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import bag_information
 from lubrig_ros.bag.reader import Stream

@@ -25,7 +25,9 @@ from lubrig_ros.bag.errors import BagError
 RUN_CONFIG_KEY = "lubrig_ros.run_config"
 VERSION_KEY = "lubrig_ros.version"
 CONFIG_SIDECAR = "run_config.yaml"  # copy of the run configuration, kept for repair after a crash
-ACCOUNTING_SIDECAR = "accounting.json"  # the recorder's per-stream sample accounting (app/accounting.py)
+ACCOUNTING_SIDECAR = (
+    "accounting.json"  # the recorder's per-stream sample accounting (app/recording/accounting.py)
+)
 
 #: The rig's own interface package (lubrig_interfaces, ament_cmake + rosidl).
 INTERFACE_PACKAGE = "lubrig_interfaces"

@@ -21,8 +21,8 @@ import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-from lubrig_ros.app.cdr import float64_value
-from lubrig_ros.app.plant_output import BLOCK_FIELDS as BLOCK_FIELDS_OF_PLANT
+from lubrig_ros.app.interface.cdr import float64_value
+from lubrig_ros.app.plant.output import BLOCK_FIELDS as BLOCK_FIELDS_OF_PLANT
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.findings import Verification
 from lubrig_ros.bag.layout import RUN_CONFIG_KEY, find_mcap, typestore

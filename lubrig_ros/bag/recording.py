@@ -9,7 +9,7 @@ module decides everything else.
   unstamped message, or a stamp that is not rig time (at or beyond `WALL_CLOCK_NS`: a node on the
   wall clock), the latest /clock value received before it. Such a message waits (`SIM_HOLD_NS` at
   most) for the /clock that places it.
-- **Accounting** (app/accounting.py): every message of an indexed type (RigState, RigStateBlock,
+- **Accounting** (app/recording/accounting.py): every message of an indexed type (RigState, RigStateBlock,
   BandVelocityBlock) written is counted per stream from its sample index and segment; the plant's
   FlowProgress announces what it published, so samples not yet taken are known (`behind`).
 - **Flow progress**: after every state_block written (or, with ``progress_per_block`` false, only
@@ -28,10 +28,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from lubrig_ros.app.accounting import StreamAccount
-from lubrig_ros.app.cdr import INDEXED_TYPES, leading_stamp_ns, sample_span
-from lubrig_ros.app.contract import DEFAULT_NAMESPACE, Topic, documented_topics, resolve
 from lubrig_ros.app.fileio import write_text_atomic
+from lubrig_ros.app.interface.cdr import INDEXED_TYPES, leading_stamp_ns, sample_span
+from lubrig_ros.app.interface.contract import DEFAULT_NAMESPACE, Topic, documented_topics, resolve
+from lubrig_ros.app.recording.accounting import StreamAccount
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import ACCOUNTING_SIDECAR, cdr_string, typestore
 from lubrig_ros.bag.repair import repair_bag

@@ -2,7 +2,7 @@
 
 Reads DIR/timeseries.csv and DIR/summary.json, transforms the displacement minus its mean (from
 --start on), writes DIR/wavelet.png and adds a "wavelet" section to DIR/summary.json (other keys
-are kept). The policy (scales, memory cap, decimation) is app/analysis.py's, as for sweeps and
+are kept). The policy (scales, memory cap, decimation) is app/analysis/policy.py's, as for sweeps and
 reports.
 """
 
@@ -17,7 +17,7 @@ from typing import Any
 from lubrig_ros.core.errors import InputError
 
 from ..app import rundir
-from ..app.analysis import DEFAULT_POLICY, MAX_POWER_POINTS, WaveletAnalysis, analyze_displacement
+from ..app.analysis.policy import DEFAULT_POLICY, MAX_POWER_POINTS, WaveletAnalysis, analyze_displacement
 from .common import parse_finite
 
 __all__ = ["MAX_POWER_POINTS", "analyze_run", "register"]

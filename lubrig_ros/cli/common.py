@@ -139,7 +139,7 @@ def add_run_selection(parser: argparse.ArgumentParser) -> None:
 
 #: Memory `lubrig simulate` needs per output sample, bytes: the trajectory's six float64 columns,
 #: the summary's and figures' temporaries and the CSV rows (a generous estimate, not a measurement
-#: of one run: the wavelet analysis is bounded on its own, app/analysis.py).
+#: of one run: the wavelet analysis is bounded on its own, app/analysis/policy.py).
 SIMULATE_BYTES_PER_SAMPLE = 400
 
 

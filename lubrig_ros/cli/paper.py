@@ -15,7 +15,7 @@ from pathlib import Path
 from lubrig_ros.core.errors import InputError
 
 from ..app.rundir import prepare_output_dir
-from ..app.study_runs import read_scan_csv, write_scan_csv
+from ..app.study.runs import read_scan_csv, write_scan_csv
 from ..core.presets import config_dir, default_config
 from ..core.schema import SIMULATION_FIELDS
 from ..report.paper import HTML_PAGE, MIN_DURATION, PAGE_OUTPUTS, copy_to_docs, run_paper, total_rig_time

@@ -3,7 +3,7 @@
 Resolves the run once (case | config file | default, plus --duration / --convention) and writes
 it to DIR/run_config.yaml; every node gets that file as its `config_file` parameter (nothing is
 rebuilt from a case number). The nodes, their parameters and their start order are the launch
-plan (app/rig_plan.py), which launch/rig.launch.py turns into launch_ros actions as well.
+plan (app/processes/rig_plan.py), which launch/rig.launch.py turns into launch_ros actions as well.
 
 Before anything starts, the launcher looks at the ROS graph (cli/rig_ros.py): a namespace that
 another rig holds on this ROS_DOMAIN_ID is refused (exit 2, one line naming that rig's nodes).
@@ -43,7 +43,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from ..app.contract import (
+from ..app.interface.contract import (
     DEFAULT_NAMESPACE,
     EXIT_INTEGRATION_FAILED,
     EXIT_REAL_TIME_NOT_HELD,
@@ -52,11 +52,11 @@ from ..app.contract import (
     recorded_topics,
     validate_namespace,
 )
-from ..app.discovery import discovery_environment
-from ..app.rig_plan import CLEAN_EXITS, READY_LINES, ParameterValue, RigPlan, rig_plan
+from ..app.processes.discovery import discovery_environment
+from ..app.processes.rig_plan import CLEAN_EXITS, READY_LINES, ParameterValue, RigPlan, rig_plan
 from ..app.rundir import prepare_output_dir
 from ..app.selection import RunSelection
-from ..app.view_access import WAYS
+from ..app.view.access import WAYS
 from ..core.params import CONVENTIONS, ParameterError
 from ..core.presets import RunConfig, config_dir
 from ..nodes.view import DEFAULT_PORT, HIGHEST_PORT, tcp_port

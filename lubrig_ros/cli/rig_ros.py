@@ -1,6 +1,6 @@
 """`lubrig rig`'s own ROS participant: is the namespace free (before the nodes start), is the run over.
 
-`namespace_taken` looks at the graph for GRAPH_SETTLE_S (app/discovery.py): another rig's nodes
+`namespace_taken` looks at the graph for GRAPH_SETTLE_S (app/processes/discovery.py): another rig's nodes
 in the namespace (plant, belt_drive, analysis, the recorder's), or any publisher of a topic in
 it, make the namespace taken, and `lubrig rig` refuses to start there (two rigs in one namespace
 would both run, each bag holding both rigs' samples). The plant checks again at its own start-up
@@ -16,9 +16,9 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from ..app.contract import DEFAULT_NAMESPACE
-from ..app.discovery import GRAPH_SETTLE_S, fully_qualified, rig_occupants
-from ..app.rig_plan import NODES, RECORDER_NODE_PREFIX
+from ..app.interface.contract import DEFAULT_NAMESPACE
+from ..app.processes.discovery import GRAPH_SETTLE_S, fully_qualified, rig_occupants
+from ..app.processes.rig_plan import NODES, RECORDER_NODE_PREFIX
 from .progress import Progress
 
 #: Sim: end the run (non-zero) once the plant has reported it stalled this long without a break
@@ -46,7 +46,7 @@ def _launcher_node() -> tuple[Any, Any]:
 
 
 def _occupants(node: Any, namespace: str) -> list[str]:
-    """Who the launcher's node sees holding `namespace` (app.discovery.rig_occupants)."""
+    """Who the launcher's node sees holding `namespace` (app.processes.discovery.rig_occupants)."""
     prefix = namespace.rstrip("/") + "/"
     names = (t for t, _types in node.get_topic_names_and_types())
     topics = [t for t in names if t.startswith(prefix) and "/" not in t[len(prefix) :]]
@@ -99,7 +99,7 @@ def wait_complete(
     """
     from std_msgs.msg import Bool
 
-    from ..app import contract
+    from ..app.interface import contract
     from ..nodes.interfaces import qos_profile
 
     spec = contract.topic("run_complete").resolved(namespace)

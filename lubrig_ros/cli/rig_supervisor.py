@@ -22,8 +22,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..app.lifetime import die_with_parent
-from ..app.rig_plan import CLEAN_EXITS, READY_LINES
+from ..app.processes.lifetime import die_with_parent
+from ..app.processes.rig_plan import CLEAN_EXITS, READY_LINES
 
 #: Set by the launcher's SIGINT handler (catch_ctrl_c) before it raises KeyboardInterrupt.
 CTRL_C = threading.Event()

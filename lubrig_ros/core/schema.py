@@ -7,7 +7,7 @@ Who applies them:
 * ``RunConfig`` (core/presets.py) checks every field of a run and the cross-checks between
   fields (every run: CLI, YAML, sweeps, the nodes' parameters applied at a reset);
 * the band profile kinds (core/profiles.py) check their own fields;
-* the nodes' parameter descriptors carry them (app/node_parameters.py derives the plant's and
+* the nodes' parameter descriptors carry them (app/interface/node_parameters.py derives the plant's and
   belt_drive's parameters from these tables, so ``ros2 param describe`` shows the same range);
 * ``lubrig --help`` shows them (cli/common.py), config/rig.yaml states them in its comments
   (test/test_schema.py checks both against this module);
@@ -331,7 +331,7 @@ class SampleField:
     integrator's output sample (core.trajectory.TrajectorySample's fields but its time), the
     plant's `belt_travel` and the run's `normal_force` (N). The plant compiles every formula into
     one function, applied to one sample in the wall-clock modes and to whole arrays in the
-    stepped modes (app/plant_output.py). So a new output field is one entry here plus its line in
+    stepped modes (app/plant/output.py). So a new output field is one entry here plus its line in
     RigState.msg and RigStateBlock.msg (test/test_interfaces.py checks the .msg files against this
     table: names, order, units).
     """
@@ -373,7 +373,7 @@ SAMPLE_FIELDS: tuple[SampleField, ...] = (
 
 #: Shadow mode's per-pair arrays (ShadowBlock, in its field order) and their SI units: the real
 #: rig's measured displacement, the plant's sample it is paired with, measured − simulated and the
-#: running RMS of that residual over the segment (app/shadow.py).
+#: running RMS of that residual over the segment (app/plant/shadow.py).
 SHADOW_FIELDS: dict[str, str] = {
     "measured_displacement": "m",
     "simulated_displacement": "m",

@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from ..app import rundir
-from ..app.analysis import WaveletAnalysis
+from ..app.analysis.policy import WaveletAnalysis
 from ..core.presets import RunConfig
 from ..core.trajectory import Trajectory
 from . import style

@@ -1,6 +1,6 @@
 """The realtime timing figure of a recorded run: lateness distribution, lateness over time, gaps.
 
-Drawn from one app.lateness.RigTiming, so the figure states the numbers of the report's timing
+Drawn from one app.recording.lateness.RigTiming, so the figure states the numbers of the report's timing
 section. Three panels:
 
 1. the lateness distribution: a histogram with a log count axis (a handful of late samples among
@@ -27,7 +27,7 @@ from matplotlib.axis import Axis
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, MaxNLocator, NullFormatter
 
-from ..app.lateness import RigTiming
+from ..app.recording.lateness import RigTiming
 from . import style
 
 TIMING_FIGURE = "timing.png"

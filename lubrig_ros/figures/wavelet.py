@@ -15,7 +15,7 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter
 
-from ..app.analysis import WaveletAnalysis
+from ..app.analysis.policy import WaveletAnalysis
 from ..core.wavelet import WaveletResult
 from . import style
 
@@ -154,7 +154,7 @@ def wavelet_figure(
 def analysis_figure(
     analysis: WaveletAnalysis, title: str, natural_frequency_hz: float | None = None
 ) -> Figure:
-    """wavelet_figure of an app.analysis result: f0, the band fundamental and its harmonics marked.
+    """wavelet_figure of an app.analysis.policy result: f0, the band fundamental and its harmonics marked.
 
     The frequency axis keeps the dominant components of at least AXIS_COMPONENT_POWER of the
     strongest (frequency_limits).

@@ -14,7 +14,7 @@ Two sources, both SI units:
   stream with pairs) is a real rig's record instead: the measured displacement is the pairs'
   ``measured_displacement`` and the band velocity the state stream's ``band_velocity`` of the same
   sample index (the value the plant integrated, which is the rig's band value the pair belongs to;
-  app/plant_session.py, "Shadow"), over the longest run of consecutive paired samples of the first
+  app/plant/session.py, "Shadow"), over the longest run of consecutive paired samples of the first
   segment; the state stream's displacement and μ are the model's and are not used.
 
 Samples must be uniform in time (the integrator's output grid): a CSV whose time steps vary by

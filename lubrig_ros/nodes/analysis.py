@@ -5,7 +5,7 @@ wall-clock modes one per output_block_length samples) and, with `per_sample_inpu
 <ns>/state (RigState, one message per sample: for a plant that publishes only those); the band
 velocity comes with each sample. Every `publish_period` s of wall time (a steady-clock timer in
 every mode, so the analysis never waits for /clock) the samples received since the last update go
-into app.analysis_session.AnalysisSession, and the node publishes what it returns: the dominant
+into app.analysis.session.AnalysisSession, and the node publishes what it returns: the dominant
 frequency, the newest wavelet power columns (Float64MultiArray, dims ["frequency", "time"], and
 WaveletFrame with its frequency and time axes), an rgb8 image of the window's power, the linear
 zone and ζ_crit at the current band velocity, every stability flag with its values
@@ -22,8 +22,9 @@ second session analyses the real rig's measured displacement the same way, and e
 also publishes <ns>/measured/dominant_frequency, measured/wavelet_frame and measured/stability
 beside the model's (so an instability growing on the rig shows next to the model's zones). The
 rig sends no velocity: ẋ is the measured displacement's backward difference over consecutive
-sample indices (app/shadow.measured_velocity), and v_rel = v_band − γ ẋ of the run's γ. Without
-shadow blocks nothing of this exists (no publisher, no session). Topics, QoS, parameters: app/contract.py.
+sample indices (app/plant/shadow.measured_velocity), and v_rel = v_band − γ ẋ of the run's γ.
+Without shadow blocks nothing of this exists (no publisher, no session). Topics, QoS, parameters:
+app/interface/contract.py.
 """
 
 from __future__ import annotations
@@ -42,10 +43,10 @@ from std_msgs.msg import Bool, Float64, Float64MultiArray, MultiArrayDimension, 
 
 from lubrig_interfaces.msg import RigState, RigStateBlock, ShadowBlock, StabilityFlags, WaveletFrame
 
-from ..app import cdr
-from ..app.analysis_session import AnalysisOutput, AnalysisSession, AnalysisSettings
-from ..app.contract import ANALYSIS_PARAMETERS
-from ..app.shadow import measured_velocity
+from ..app.analysis.session import AnalysisOutput, AnalysisSession, AnalysisSettings
+from ..app.interface import cdr
+from ..app.interface.contract import ANALYSIS_PARAMETERS
+from ..app.plant.shadow import measured_velocity
 from ..core import flags as core_flags
 from . import common
 from .interfaces import create_publisher, create_subscription

@@ -30,8 +30,8 @@ from rclpy.parameter import Parameter
 from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
 
 from ..app.belt_session import AheadSchedule, BandBlock, ProfileState, SimSchedule
-from ..app.contract import BELT_DRIVE_PARAMETERS, profile_parameter
 from ..app.flow import FlowGate, flow_window_problem, qualified_name
+from ..app.interface.contract import BELT_DRIVE_PARAMETERS, profile_parameter
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
 from ..core.profiles import BandProfile, profile_kinds, profile_to_dict

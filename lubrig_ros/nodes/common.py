@@ -1,6 +1,6 @@
 """Shared pieces of the lubrig_ros nodes: parameters from the contract, run selection, loops.
 
-Topic names, types, QoS and the node parameters live in app/contract.py (docs/topics.md,
+Topic names, types, QoS and the node parameters live in app/interface/contract.py (docs/topics.md,
 docs/nodes.md); names there are relative to the node's namespace (DEFAULT_NAMESPACE /lubrig unless
 the node is started with `--ros-args -r __ns:=/other`), except /clock and /diagnostics.
 """
@@ -29,9 +29,9 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..app import contract
-from ..app.contract import DEFAULT_NAMESPACE, NodeParameter
-from ..app.diagnostics import Status
+from ..app.interface import contract
+from ..app.interface.contract import DEFAULT_NAMESPACE, NodeParameter
+from ..app.interface.diagnostics import Status
 from ..app.selection import base_config
 from ..app.timing import DeadlineLoop
 from ..core.params import ParameterError
@@ -39,7 +39,7 @@ from ..core.presets import RunConfig
 from .interfaces import qos_profile
 from .script import bounded_teardown
 
-#: rclpy QoS profiles of the contract's plain-data QoS (app/contract.py).
+#: rclpy QoS profiles of the contract's plain-data QoS (app/interface/contract.py).
 STREAM_QOS = qos_profile(contract.STREAM_QOS)
 ANALYSIS_QOS = qos_profile(contract.ANALYSIS_QOS)
 LATCHED_QOS = qos_profile(contract.LATCHED_QOS)

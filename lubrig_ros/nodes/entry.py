@@ -40,8 +40,8 @@ NODE_SUMMARIES = {
 
 
 def node_help(name: str) -> str:
-    """Usage and parameters of rig node `name` (app/contract.py), as `<node> --help` prints them."""
-    from lubrig_ros.app.contract import NODE_PARAMETERS
+    """Usage and parameters of rig node `name` (app/interface/contract.py), as `<node> --help` prints them."""
+    from lubrig_ros.app.interface.contract import NODE_PARAMETERS
 
     lines = [
         f"usage: {name} [-h] [--ros-args [-p NAME:=VALUE ...] [--params-file FILE] [-r __ns:=/NS] ...]",

@@ -1,6 +1,6 @@
 """What a rig node sees of the ROS graph: who else holds its namespace, who publishes band input.
 
-The rules are ROS-free (app/discovery.py: `rig_occupants`, `extra_publishers`,
+The rules are ROS-free (app/processes/discovery.py: `rig_occupants`, `extra_publishers`,
 `band_source_problem`); this module asks rclpy for the graph and acts on the answer:
 
 - `NamespaceGuard`: a node's start-up (the plant's). For GRAPH_SETTLE_S of discovery it looks for
@@ -23,8 +23,8 @@ from typing import Any
 
 from rclpy.node import Node
 
-from ..app.diagnostics import Status
-from ..app.discovery import (
+from ..app.interface.diagnostics import Status
+from ..app.processes.discovery import (
     GRAPH_SETTLE_S,
     Endpoint,
     band_source_problem,
@@ -40,7 +40,7 @@ GUARD_PERIOD_S = 0.1
 
 
 def graph_publishers(node: Node, topics: Iterable[str]) -> dict[str, list[Endpoint]]:
-    """Topic → (namespace, name) of every publisher the node sees on it (app.discovery's input)."""
+    """Topic → (namespace, name) of every publisher the node sees on it (app.processes.discovery's input)."""
     return {
         t: [(i.node_namespace, i.node_name) for i in node.get_publishers_info_by_topic(t)] for t in topics
     }

@@ -1,4 +1,4 @@
-"""The contract's plain data (app/contract.py) as rclpy objects.
+"""The contract's plain data (app/interface/contract.py) as rclpy objects.
 
 QoS profiles, message classes, and publishers, subscriptions and services made by contract name.
 Names are handed to rclpy as the contract holds them, RELATIVE (``band_velocity``,
@@ -18,8 +18,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from lubrig_ros.core.errors import InputError
 
-from ..app import contract
-from ..app.contract import QoS
+from ..app.interface import contract
+from ..app.interface.contract import QoS
 
 
 def qos_profile(qos: QoS) -> QoSProfile:

@@ -1,9 +1,9 @@
-"""plant node: the rig (app.plant_session.PlantSession) on ROS topics.
+"""plant node: the rig (app.plant.session.PlantSession) on ROS topics.
 
 Band input in every mode: <ns>/band_velocity_block (lubrig_interfaces/BandVelocityBlock: what
 belt_drive sends, with the sample index of each value) and <ns>/band_velocity (std_msgs/Float64,
 one value per message: foreign rig software). Modes sim | lockstep | realtime | rig_in_loop;
-their rules live in app/plant_session.py (unit-tested without DDS):
+their rules live in app/plant/session.py (unit-tested without DDS):
 
 * sim integrates every band block in order with the core stepper (equal to core.run.simulate
   whatever the block length) and publishes one <ns>/state_block (RigStateBlock) per band block,
@@ -17,21 +17,22 @@ their rules live in app/plant_session.py (unit-tested without DDS):
   state is dropped by its sample index).
 * realtime / rig_in_loop tick from a deadline loop on a thread of their own: one <ns>/state per
   sample (state_per_sample; stamped with the node clock when it was computed; only while the
-  topic has a subscriber, checked with every block; serialized by hand, app/cdr.StampedEncoder), and one
-  <ns>/state_block per output_block_length samples (stamp: the due time of its first sample,
-  node clock; each sample's lateness; a declared gap in `skipped`), followed by flow_progress,
-  which belt_drive follows to send band samples ahead. Falling behind real time: lag_policy.
+  topic has a subscriber, checked with every block; serialized by hand,
+  app/interface/cdr.StampedEncoder), and one <ns>/state_block per output_block_length samples
+  (stamp: the due time of its first sample, node clock; each sample's lateness; a declared gap in
+  `skipped`), followed by flow_progress, which belt_drive follows to send band samples ahead.
+  Falling behind real time: lag_policy.
 
 `scalar_topics` adds std_msgs/Float64 displacement, velocity and friction_coefficient per
 sample. `shadow` (rig_in_loop): the real rig's <ns>/measured_displacement (std_msgs/Float64, one
-value per message) is paired with the published samples (app/plant_session.py, "Shadow") and the
+value per message) is paired with the published samples (app/plant/session.py, "Shadow") and the
 pairs go out as <ns>/shadow_block (ShadowBlock) after each state_block; the publishers and
 messages are nodes/plant_outputs.py's. A reset (<ns>/plant/reset) starts a new segment at t = 0
 (stepped modes: its stamps and /clock go on from the old segment's end, never back) and reports
 it on flow_progress at once; <ns>/plant/pause pauses. Exit status 3 (EXIT_REAL_TIME_NOT_HELD)
 when a wall-clock run did not hold real time. Start-up: nothing runs for 1.5 s of discovery;
 another rig in the namespace ends the node (exit 2); band publishers besides `band_source` are
-WARNed (nodes/graph.py). Topics, QoS, parameters: app/contract.py.
+WARNed (nodes/graph.py). Topics, QoS, parameters: app/interface/contract.py.
 """
 
 from __future__ import annotations
@@ -53,9 +54,9 @@ from std_srvs.srv import SetBool, Trigger
 
 from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
 
-from ..app import cdr, contract
-from ..app.plant_diagnostics import HARDWARE_ID
-from ..app.plant_session import (
+from ..app.interface import cdr, contract
+from ..app.plant.diagnostics import HARDWARE_ID
+from ..app.plant.session import (
     PlantBlock,
     PlantSample,
     PlantSession,

@@ -2,8 +2,8 @@
 
 `PlantOutputs` creates the plant's publishers from the contract (nodes/interfaces.py) and fills
 reused messages: a PlantBlock as RigStateBlock, a PlantSample as RigState (serialized by hand,
-app/cdr.StampedEncoder: a third of a message object's cost) and the scalar Float64 topics,
-flow_progress, /clock, and in shadow mode the pairs of app.shadow as ShadowBlock. When to publish
+app/interface/cdr.StampedEncoder: a third of a message object's cost) and the scalar Float64 topics,
+flow_progress, /clock, and in shadow mode the pairs of app.plant.shadow as ShadowBlock. When to publish
 (stamps, pacing, who listens) is the plant node's (nodes/plant.py); this module only says how.
 """
 
@@ -16,10 +16,10 @@ from std_msgs.msg import Float64
 
 from lubrig_interfaces.msg import FlowProgress, RigState, RigStateBlock, ShadowBlock
 
-from ..app import cdr
-from ..app.plant_output import check_state_fields
-from ..app.plant_session import PlantBlock, PlantSample
-from ..app.shadow import ShadowSamples
+from ..app.interface import cdr
+from ..app.plant.output import check_state_fields
+from ..app.plant.session import PlantBlock, PlantSample
+from ..app.plant.shadow import ShadowSamples
 from . import common
 from .interfaces import create_publisher
 

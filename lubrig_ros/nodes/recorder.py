@@ -4,7 +4,7 @@ The node is glue: subscriber processes (nodes/recorder_workers.py: raw subscript
 serialized messages) feed a recording session (bag/recording.py: log times, the bag, accounting,
 what flow progress to report), and this process's own node publishes that progress.
 
-Accounting (app/accounting.py): every RigState, RigStateBlock and BandVelocityBlock written is
+Accounting (app/recording/accounting.py): every RigState, RigStateBlock and BandVelocityBlock written is
 counted per stream from its sample index and segment; gaps, duplicates and samples out of order
 are printed at the end, written to <bag>/accounting.json, and make the exit status 1.
 
@@ -39,14 +39,14 @@ from typing import Any
 
 import yaml
 
-from lubrig_ros.app.contract import (
+from lubrig_ros.app.interface.contract import (
     DEFAULT_NAMESPACE,
     RECORDER_PARTICIPANT,
     Topic,
     documented_topics,
     resolve,
 )
-from lubrig_ros.app.contract import select_topics as _select_topics
+from lubrig_ros.app.interface.contract import select_topics as _select_topics
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.recording import RecordingSession
 from lubrig_ros.bag.writer import BagWriter
@@ -54,7 +54,7 @@ from lubrig_ros.core.errors import InputError
 from lubrig_ros.nodes.recorder_workers import PoolMessage, WorkerPool, sim_time_overrides, start_fork_server
 from lubrig_ros.nodes.script import bounded_teardown, run_script
 
-#: The recorder's flow-control participant: <namespace>/lubrig_recorder (app/contract.py
+#: The recorder's flow-control participant: <namespace>/lubrig_recorder (app/interface/contract.py
 #: RECORDER_PARTICIPANT; `lubrig rig` puts it in belt_drive's required_consumers).
 RECORDER_NODE = RECORDER_PARTICIPANT
 #: The participant name (relative to the namespace) `lubrig rig` checks before pacing on it.

@@ -25,8 +25,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import Any
 
-from lubrig_ros.app.contract import DEFAULT_NAMESPACE, RECORDER_PARTICIPANT, QoS, Topic
-from lubrig_ros.app.lifetime import die_with_parent
+from lubrig_ros.app.interface.contract import DEFAULT_NAMESPACE, RECORDER_PARTICIPANT, QoS, Topic
+from lubrig_ros.app.processes.lifetime import die_with_parent
 from lubrig_ros.bag.errors import BagError
 
 #: A worker ships its batch of non-block messages this often (s).
@@ -128,7 +128,7 @@ def _worker(
 
         return cb
 
-    subs = [  # QoS from the contract (app/contract.py), deeper history
+    subs = [  # QoS from the contract (app/interface/contract.py), deeper history
         node.create_subscription(
             message_class(spec.msgtype),
             spec.name,

@@ -6,11 +6,11 @@ published. Messages are published as recorded (serialized bytes, no re-encoding)
 (RigStateBlock, BandVelocityBlock) as blocks, RigState per sample. With --clock, /clock is
 published from the bag's log times (and a recorded /clock topic is not replayed).
 
-The player (app/replay_session.py; its ROS side nodes/replay_player.py) plays from --start to
+The player (app/recording/replay.py; its ROS side nodes/replay_player.py) plays from --start to
 --until, pauses, steps one message, seeks and changes its rate through the services and
 parameters of the node /lubrig_replay (docs/recording.md). With --lossless NODE ..., it
 publishes the state blocks no faster than those nodes report on flow_progress that they took
-them (the sim flow control, app/replay_flow.py): no sample is lost to a slow subscriber.
+them (the sim flow control, app/recording/replay_flow.py): no sample is lost to a slow subscriber.
 
 A bag of the legacy layout (sensor_msgs/JointState on <ns>/state, recorded before
 lubrig_interfaces) is refused with one line when its state topic is selected: the current nodes
@@ -29,12 +29,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from lubrig_ros.app.cdr import sample_span
-from lubrig_ros.app.contract import DEFAULT_NAMESPACE, STREAM_QOS, documented_topics, resolve
 from lubrig_ros.app.flow import qualified_name
-from lubrig_ros.app.node_parameters import DEFAULT_FLOW_WINDOW
-from lubrig_ros.app.replay_flow import LosslessFlow
-from lubrig_ros.app.replay_session import MAX_RATE, Entry, ReplaySession, check_rate
+from lubrig_ros.app.interface.cdr import sample_span
+from lubrig_ros.app.interface.contract import DEFAULT_NAMESPACE, STREAM_QOS, documented_topics, resolve
+from lubrig_ros.app.interface.node_parameters import DEFAULT_FLOW_WINDOW
+from lubrig_ros.app.recording.replay import MAX_RATE, Entry, ReplaySession, check_rate
+from lubrig_ros.app.recording.replay_flow import LosslessFlow
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.reader import Bag
 from lubrig_ros.core.errors import InputError

@@ -1,6 +1,6 @@
 """The replay node's ROS side: publishers, the player's services and parameters, the playing loop.
 
-Glue only: every decision is the session's (app/replay_session.py, app/replay_flow.py). An
+Glue only: every decision is the session's (app/recording/replay.py, app/recording/replay_flow.py). An
 executor thread serves the services, the parameters and the subscribers' flow_progress; the
 main thread plays. Both change the session under one lock; a control wakes the playing loop.
 
@@ -30,7 +30,7 @@ from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
 from lubrig_interfaces.srv import Seek, SetRate
-from lubrig_ros.app.replay_session import MAX_RATE, Done, Entry, Publish, ReplaySession
+from lubrig_ros.app.recording.replay import MAX_RATE, Done, Entry, Publish, ReplaySession
 from lubrig_ros.core.errors import InputError
 
 from .common import descriptor

@@ -7,7 +7,7 @@ Foxglove's own SDK (foxglove-sdk), one channel per topic: message encoding ``cdr
 message definition in ``ros2msg`` text (the type's .msg file with its dependencies, as in MCAP
 files), so Foxglove decodes them itself and a new message type needs no code here.
 
-Decimation for display (app/display.py): at most `rate` messages per second of rig time per topic
+Decimation for display (app/view/display.py): at most `rate` messages per second of rig time per topic
 (header stamp; receive time for unstamped types), at most twice that per wall second. Blocks
 (``state_block``) are shown sample by sample as ``<ns>/state`` (RigState) on the same rule, so one
 layout serves sim and realtime rigs; where a plant publishes both (the wall-clock modes), the
@@ -18,7 +18,7 @@ rig (also for `lubrig replay`, whose messages carry their recorded stamps).
 
 Loopback (127.0.0.1) by default: binding another address (``--host``) is an explicit choice.
 Read-only by default: ``--allow-services``, ``--allow-parameters`` and ``--allow-publish`` each
-open one way back from a client to the rig (app/view_access.py, view_control.py,
+open one way back from a client to the rig (app/view/access.py, view_control.py,
 view_parameters.py); without them the server advertises none of those capabilities.
 """
 
@@ -31,9 +31,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from lubrig_ros.app import display, layouts, view_access
-from lubrig_ros.app.contract import DEFAULT_NAMESPACE, validate_namespace
-from lubrig_ros.app.view_access import Access
+from lubrig_ros.app.interface.contract import DEFAULT_NAMESPACE, validate_namespace
+from lubrig_ros.app.view import access as view_access
+from lubrig_ros.app.view import display, layouts
+from lubrig_ros.app.view.access import Access
 from lubrig_ros.core.params import ParameterError
 
 from .view_topics import DISCOVERY_PERIOD_S, View

@@ -1,4 +1,4 @@
-"""The opt-in ways back from a Foxglove client to the rig (`view --allow-*`; app/view_access.py).
+"""The opt-in ways back from a Foxglove client to the rig (`view --allow-*`; app/view/access.py).
 
 - `ServiceBridge`: the rig's services as Foxglove services (request and response in ROS 2 CDR
   with their ros2msg definitions); a call is forwarded to the ROS service and the ROS reply is
@@ -21,8 +21,8 @@ from typing import Any
 
 from foxglove.websocket import ServerListener
 
-from lubrig_ros.app import view_access
-from lubrig_ros.app.view_access import Access
+from lubrig_ros.app.view import access as view_access
+from lubrig_ros.app.view.access import Access
 from lubrig_ros.core.errors import InputError
 
 from .interfaces import create_publisher, message_class

@@ -1,4 +1,4 @@
-"""Rig node parameters for Foxglove clients (`view --allow-parameters`; app/view_access.py).
+"""Rig node parameters for Foxglove clients (`view --allow-parameters`; app/view/access.py).
 
 Read and set through each node's own ROS parameter services (rclpy's AsyncParameterClient), so
 the node's validation decides: a value it refuses is not applied, and its reason goes back to the
@@ -15,7 +15,7 @@ import functools
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from lubrig_ros.app import view_access
+from lubrig_ros.app.view import access as view_access
 from lubrig_ros.core.errors import InputError
 
 from .view_control import wait_for

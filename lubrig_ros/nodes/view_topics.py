@@ -4,7 +4,7 @@ Each topic of the namespace (and the ROS-wide /clock and /diagnostics) found on 
 subscribed RAW (serialized CDR, no decoding) with the type the graph reports and logged on a
 Foxglove channel: message encoding ``cdr``, schema the message definition in ``ros2msg`` text (the
 type's .msg file with its dependencies, as in MCAP files), so Foxglove decodes it itself and a new
-message type needs no code here. Decimation for display (app/display.py); blocks (``state_block``)
+message type needs no code here. Decimation for display (app/view/display.py); blocks (``state_block``)
 shown sample by sample as ``<ns>/state`` with their extremes kept.
 """
 
@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from lubrig_ros.app import display
-from lubrig_ros.app.cdr import leading_stamp_ns
+from lubrig_ros.app.interface.cdr import leading_stamp_ns
+from lubrig_ros.app.view import display
 from lubrig_ros.core.errors import InputError
 
 DISCOVERY_PERIOD_S = 0.5

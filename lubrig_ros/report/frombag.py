@@ -16,7 +16,7 @@ segment start = sample_index · sample_period, 0 at each segment's start (`rig_t
 
 `read_run` reads a bag once (a lubrig_ros.bag.Bag: one walk of the file for its integrity check
 and the messages, one decoding pass) and gives everything the report needs: configuration,
-trajectory, the sample accounting and, for a realtime recording, its timing (app/lateness.py);
+trajectory, the sample accounting and, for a realtime recording, its timing (app/recording/lateness.py);
 `trajectory_from_bag` and `recording_summary` are its parts. `open_bag` opens a bag with the
 topics the report reads, so a caller can refuse a damaged bag and report on it from one read.
 """
@@ -32,9 +32,9 @@ import yaml
 
 from lubrig_ros.core.errors import LubrigError
 
-from ..app.accounting import StreamAccount
-from ..app.contract import DEFAULT_NAMESPACE, resolve, validate_namespace
-from ..app.lateness import RigTiming, rig_timing
+from ..app.interface.contract import DEFAULT_NAMESPACE, resolve, validate_namespace
+from ..app.recording.accounting import StreamAccount
+from ..app.recording.lateness import RigTiming, rig_timing
 from ..bag import Bag, BagError, BagSummary, TopicArrays
 from ..core.params import ParameterError
 from ..core.presets import RunConfig, from_mapping
@@ -139,7 +139,7 @@ def _state_arrays(bag: Bag, namespace: str) -> tuple[str, TopicArrays, dict[str,
 
 
 def stream_accounts(bag: str | Path | Bag, namespace: str | None = None) -> dict[str, StreamAccount]:
-    """Sample accounting (app/accounting.py) of the bag's indexed streams, from the bag alone.
+    """Sample accounting (app/recording/accounting.py) of the bag's indexed streams, from the bag alone.
 
     The state stream (state_block or RigState state) in log-time order; legacy bags (no sample
     index) give {}.
@@ -258,7 +258,7 @@ def read_run(bag: str | Path | Bag, namespace: str | None = None, segment: int |
 
     The trajectory as trajectory_from_bag gives it, the recording as recording_summary does, and
     the timing of the trajectory's segment when its samples carry a realtime lateness (the
-    plant's max_lag from its timing status in the bag, else app.lateness.DEFAULT_MAX_LAG).
+    plant's max_lag from its timing status in the bag, else app.recording.lateness.DEFAULT_MAX_LAG).
     """
     run = _read(bag, namespace)
     trajectory, order = _trajectory(run, segment)

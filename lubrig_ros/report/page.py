@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..app.analysis import analyze_displacement, whole_record
+from ..app.analysis.policy import analyze_displacement, whole_record
 from ..app.rundir import prepare_output_dir
 from ..bag import Bag
 from ..core.run import summarize
@@ -196,7 +196,7 @@ def write_report(bag: str | Path | Bag, out: str | Path, force: bool = False) ->
     Returns report.md. The bag is read once (frombag.open_bag, unless it is a Bag already read).
     The wavelet section is that of `lubrig analyze` with its defaults (whole record), computed
     on the trajectory in memory; every file is written once. A bag whose samples carry their
-    realtime lateness also gets the "timing" section (app/lateness.py RigTiming.summary) and
+    realtime lateness also gets the "timing" section (app/recording/lateness.py RigTiming.summary) and
     timing.png; other bags neither.
     An existing non-empty `out` is refused unless force (then the report's own files are
     replaced).

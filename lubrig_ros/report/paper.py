@@ -1,8 +1,8 @@
 """`lubrig paper`: reproduce the study offline and score every statement of it, per reading.
 
 For each named velocity-coupling convention (physical γ = 1, paper γ = 1/ω0, hertz γ = 1/f0) it
-runs the ten Table 1 cases and the 2e-8 m/s stick-slip run, measures them (app.study_runs) and
-evaluates every statement of the model doc's section 8 (app.study.STATEMENTS); with a coupling
+runs the ten Table 1 cases and the 2e-8 m/s stick-slip run, measures them (app.study.runs) and
+evaluates every statement of the model doc's section 8 (app.study.statements.STATEMENTS); with a coupling
 scan table ({s: metrics}, from the sweep engine or the committed CSV) it adds the scorecard over
 s = γ · A / A_default with its figures. DIR/comparison.md embeds every figure from DIR/study/
 (relative links only, so the page and DIR/study/ can be copied into docs/ as they are); the run
@@ -26,9 +26,9 @@ import numpy as np
 from lubrig_ros.core.errors import InputError
 
 from ..app.selection import base_config
-from ..app.study import STATEMENTS, Verdict, scorecard
-from ..app.study_floquet import period_doubling
-from ..app.study_runs import STICKSLIP, Metrics, case_metrics, rig_with_coupling, study_configs
+from ..app.study.floquet import period_doubling
+from ..app.study.runs import STICKSLIP, Metrics, case_metrics, rig_with_coupling, study_configs
+from ..app.study.statements import STATEMENTS, Verdict, scorecard
 from ..core.params import CONVENTIONS, RigParameters
 from ..core.run import simulate, summarize
 from .paper_page import (
@@ -75,7 +75,7 @@ def _run_case(
     copied to `figures` too; otherwise only config.yaml and summary.json are written (the page
     quotes their numbers). Returns (number, metrics, summary); runs in a worker process.
     """
-    from ..app.analysis import DEFAULT_POLICY, analyze_displacement
+    from ..app.analysis.policy import DEFAULT_POLICY, analyze_displacement
     from ..app.rundir import write_json, write_run
     from ..figures.run import WAVELET_FIGURE, write_wavelet_figure
     from ..figures.style import DPI
@@ -88,7 +88,7 @@ def _run_case(
     directory = out / name
     if figures is not None:
         analysis = None
-        if wavelet and number != STICKSLIP:  # app/analysis.py's one policy (second half)
+        if wavelet and number != STICKSLIP:  # app/analysis/policy.py's one policy (second half)
             analysis = analyze_displacement(
                 trajectory.time,
                 trajectory.displacement,
@@ -203,7 +203,8 @@ def run_paper(
     An existing non-empty out is refused unless force (PAGE_OUTPUTS are replaced then);
     progress(rig seconds done, detail) is called after every run.
     """
-    from ..app import analysis, rundir  # noqa: F401  (imported once here, inherited by forked workers)
+    from ..app import rundir  # noqa: F401  (imported once here, inherited by forked workers)
+    from ..app.analysis import policy  # noqa: F401  (the same)
     from ..app.rundir import prepare_output_dir
     from ..figures import run, timeseries  # noqa: F401
     from ..figures.curves import plot_friction_curve, plot_stability_map, save_figure

@@ -13,10 +13,10 @@ from typing import Any
 
 import numpy as np
 
-from ..app.study import Verdict
-from ..app.study_checks import ABOUT_WINDOW, GONE_AFTER_S, SAME_TOLERANCE
-from ..app.study_floquet import PeriodDoubling
-from ..app.study_runs import GONE_FRACTION, Metrics, rig_with_coupling
+from ..app.study.checks import ABOUT_WINDOW, GONE_AFTER_S, SAME_TOLERANCE
+from ..app.study.floquet import PeriodDoubling
+from ..app.study.runs import GONE_FRACTION, Metrics, rig_with_coupling
+from ..app.study.statements import Verdict
 from ..core.params import RigParameters
 from ..core.stability import critical_damping_ratio
 

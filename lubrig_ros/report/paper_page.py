@@ -1,6 +1,6 @@
 """The page of `lubrig paper`: scores, scorecard per reading, the coupling scan, mechanisms, cases.
 
-`comparison_markdown` composes DIR/comparison.md from the verdicts (app/study.py) and the run
+`comparison_markdown` composes DIR/comparison.md from the verdicts (app/study/statements.py) and the run
 summaries that report/paper.py produced; every number on it is measured, every figure is linked
 relative to the page (DIR/study/).
 """
@@ -11,9 +11,9 @@ import math
 from typing import Any
 
 from ..app.selection import base_config
-from ..app.study import SPANS, STATEMENTS, Verdict, score_span, scorecard
-from ..app.study_floquet import PeriodDoubling
-from ..app.study_runs import CASES, Metrics, rig_with_coupling
+from ..app.study.floquet import PeriodDoubling
+from ..app.study.runs import CASES, Metrics, rig_with_coupling
+from ..app.study.statements import SPANS, STATEMENTS, Verdict, score_span, scorecard
 from ..core.params import CONVENTIONS, RigParameters
 from . import paper_numbers
 from .paper_floquet import doubling_section
@@ -224,7 +224,7 @@ def comparison_markdown(
         f"runs of {duration:g} s per case for every named reading of the velocity coupling γ "
         "(v_rel = v_band − γ ẋ), each measured by the criteria of `lubrig_ros/core/criteria.py` and "
         f"scored against every statement of the study ({total} statements, each with what the "
-        "study says and the criterion, in `lubrig_ros/app/study.py`; the model as implemented: "
+        "study says and the criterion, in `lubrig_ros/app/study/statements.py`; the model as implemented: "
         "docs/model.md). "
         "Stationary measures use the second half of each run; spectral peaks are those of the "
         "Hann-windowed amplitude spectrum of x there (strongest first, amplitudes, not powers); μ's "

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..app.analysis import DEFAULT_POLICY, AnalysisError, analyze_displacement
+from ..app.analysis.policy import DEFAULT_POLICY, AnalysisError, analyze_displacement
 from ..core.presets import RunConfig, from_mapping
 from ..core.run import simulate, summarize
 from ..core.stability import linear_stability
@@ -40,12 +40,12 @@ SUMMARY_KEYS = (
 )
 #: Stationary windows with peak-to-peak <= this x max|x| are steady sliding (no frequency).
 STEADY_RELATIVE_PTP = 1e-12
-#: Wavelet components kept per point (the strongest of app/analysis.py's list).
+#: Wavelet components kept per point (the strongest of app/analysis/policy.py's list).
 WAVELET_COMPONENTS = 3
 
 
 def wavelet_columns(config: RunConfig, trajectory: Trajectory | None) -> dict[str, Any]:
-    """Wavelet dominant components of the stationary half (app/analysis.py's one policy)."""
+    """Wavelet dominant components of the stationary half (app/analysis/policy.py's one policy)."""
     empty: dict[str, Any] = {
         "wavelet_frequency_hz": None,
         "wavelet_power": None,

@@ -2,7 +2,7 @@
 
 One sweep point per (coupling s, study run): the ten Table 1 cases and the 2e-8 m/s stick-slip
 run (case 0), each simulated with γ = s (default contact area) and measured by
-app.study_runs.case_metrics. Points run serially or on Dask like any sweep (resumable, one JSON file
+app.study.runs.case_metrics. Points run serially or on Dask like any sweep (resumable, one JSON file
 per point); `run_scan` refines around every transition of the scorecard by adding the geometric
 midpoints of neighbouring couplings whose verdicts differ.
 """
@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from ..app.study import transitions
-from ..app.study_runs import CASES, STICKSLIP, Metrics, case_metrics, study_configs
+from ..app.study.runs import CASES, STICKSLIP, Metrics, case_metrics, study_configs
+from ..app.study.statements import transitions
 from ..core.presets import from_mapping
 from ..core.run import simulate
 from .engine import SERIAL, run_sweep

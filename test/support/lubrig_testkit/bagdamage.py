@@ -17,7 +17,7 @@ import numpy as np
 import yaml
 from mcap.reader import make_reader
 
-from lubrig_ros.app.plant_output import BeltTravel, trajectory_columns
+from lubrig_ros.app.plant.output import BeltTravel, trajectory_columns
 from lubrig_ros.bag.layout import typestore
 from lubrig_ros.bag.writer import BagWriter, serialize_string
 from lubrig_ros.core.presets import load_case

@@ -35,8 +35,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
-from lubrig_ros.app.discovery import discovery_environment
-from lubrig_ros.app.lifetime import die_with_parent
+from lubrig_ros.app.processes.discovery import discovery_environment
+from lubrig_ros.app.processes.lifetime import die_with_parent
 
 PYTHON = sys.executable
 
@@ -457,7 +457,7 @@ class Probe:
         `delay`: seconds slept in every block callback (a deliberately slow consumer).
         """
         from lubrig_interfaces.msg import FlowProgress, RigStateBlock
-        from lubrig_ros.app import contract
+        from lubrig_ros.app.interface import contract
         from lubrig_ros.nodes.interfaces import qos_profile
 
         block_name = contract.resolve(namespace, topic)

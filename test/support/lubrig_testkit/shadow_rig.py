@@ -10,7 +10,7 @@ at its own equilibrium for the first band value, driven by the run configuration
 physical convention, 1/ω0 of the true f0 otherwise. Its measured displacement of band value k is
 x(k / 1000), plus Gaussian noise of `--noise` × the range of x (seeded).
 
-Sending, by the numbers the plant pairs on (app/plant_session.py, "Shadow"): band value k is
+Sending, by the numbers the plant pairs on (app/plant/session.py, "Shadow"): band value k is
 value k of a BandVelocityBlock (first_sample_index = the number of its first value, segment 0),
 sent ahead, never more than `--lead` values beyond what the plant has taken (its flow_progress,
 counted from its progress when the first block went out: the rig_in_loop plant queues at most
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     from std_msgs.msg import Float64
 
     from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
-    from lubrig_ros.app.contract import topic
+    from lubrig_ros.app.interface.contract import topic
     from lubrig_ros.core.presets import load_config
     from lubrig_ros.nodes.interfaces import qos_profile
 

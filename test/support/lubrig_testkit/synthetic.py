@@ -33,8 +33,8 @@ import sys
 import time
 from collections.abc import Sequence
 
-from lubrig_ros.app.contract import DEFAULT_NAMESPACE, documented_topics, resolve
-from lubrig_ros.app.plant_output import BLOCK_FIELDS
+from lubrig_ros.app.interface.contract import DEFAULT_NAMESPACE, documented_topics, resolve
+from lubrig_ros.app.plant.output import BLOCK_FIELDS
 
 START_NS = 1_000_000_000  # rig time of sample 0
 PER_SAMPLE_TOPICS = ("state", "band_velocity")
