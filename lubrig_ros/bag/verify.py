@@ -6,7 +6,7 @@ offset and topic (the first one is what the CLI names):
 - the directory (metadata.yaml present and readable, one .mcap file) and the MCAP magic;
 - the header (op 0x01, profile ros2);
 - every record frame of the data section; every chunk's decompression, size and CRC-32 (a CRC
-  of 0 — bags written before issue 15 — is a note, not a problem: such a chunk cannot be
+  of 0 — bags of the earlier rosbags-based writer — is a note, not a problem: such a chunk cannot be
   checked), its inner records and the log-time range it declares; every message index against
   the chunk before it; the DataEnd record's data-section CRC (verify_data);
 - the footer and the summary: its CRC, its records, schemas and channels against the data

@@ -148,7 +148,7 @@ def walk(v: Verification, buf: mmap.mmap, size: int, st: ScanState, full: bool) 
     ]
     if st.zero_crc:
         v.notes.append(
-            f"{st.zero_crc} chunk(s) carry no CRC (written before issue 15): damage inside them "
+            f"{st.zero_crc} chunk(s) carry no CRC (an earlier writer's bag): damage inside them "
             "cannot be detected"
         )
     return data_end

@@ -52,7 +52,7 @@ def check_summary(v: Verification, buf: mmap.mmap, size: int, data_end: int, st:
         v.add(f"footer's summary start {summary_start} is not the end of the data section {data_end}", footer)
         return
     if crc == 0:
-        v.notes.append("the summary carries no CRC (written before issue 15)")
+        v.notes.append("the summary carries no CRC (an earlier writer's bag)")
     elif zlib.crc32(buf[summary_start : footer + FRAME_BYTES + 16]) != crc:
         v.add("summary CRC mismatch (summary or footer damaged)", summary_start)
     if offset_start and not summary_start <= offset_start <= footer:

@@ -2,11 +2,11 @@
 
 Two layouts are read (docs/recording.md "Bag layouts"):
 
-- current (issue 12): ``<ns>/state_block`` (lubrig_interfaces/RigStateBlock, sim) or
+- current: ``<ns>/state_block`` (lubrig_interfaces/RigStateBlock, sim) or
   ``<ns>/state`` (lubrig_interfaces/RigState, realtime and rig-in-the-loop): every sample carries
   x, ẋ, μ, v_band, v_rel with its sample_index and segment, so gaps are found from the bag alone;
-- legacy (before issue 12): sensor_msgs/JointState on ``<ns>/state`` plus the Float64 topics
-  ``<ns>/friction_coefficient`` and ``<ns>/band_velocity``.
+- legacy (the per-sample layout of earlier versions): sensor_msgs/JointState on ``<ns>/state``
+  plus the Float64 topics ``<ns>/friction_coefficient`` and ``<ns>/band_velocity``.
 
 Time is rig time: a sim plant stamps its samples with rig time on its clock, as on /clock (0 at
 the start; a reset starts a new segment, sample_index from 0, but the clock goes on, so a later
