@@ -12,12 +12,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lubrig_ros.app.study.runs import study_configs
 from lubrig_ros.core.dense import mu_extremes
 from lubrig_ros.core.friction import friction_peak
 from lubrig_ros.core.integrator import RigIntegrator
 from lubrig_ros.core.run import simulate
 from lubrig_ros.core.trajectory import Trajectory
+from lubrig_ros.study.runs import study_configs
 
 
 def _brute(trajectory: Trajectory, config, first: int, last: int, factor: int) -> np.ndarray:  # type: ignore[no-untyped-def]

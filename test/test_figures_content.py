@@ -19,9 +19,9 @@ from lubrig_ros.core.run import simulate
 from lubrig_ros.figures import style
 from lubrig_ros.figures.curves import plot_friction_curve, plot_stability_map
 from lubrig_ros.figures.run import wavelet_title
-from lubrig_ros.figures.study import verdict_map_figure
 from lubrig_ros.figures.timeseries import FIGURES, friction_velocity_figure, mu_velocity_figure
 from lubrig_ros.figures.wavelet import analysis_figure
+from lubrig_ros.study.figures import verdict_map_figure
 
 UNIT = ("(m)", "(nm)", "(m/s)", "(s)", "(Hz)", "(–)", "(kg)", "|W|²/σ²", "(N)")
 

@@ -120,8 +120,8 @@ def test_period_map_needs_a_whole_number_of_samples() -> None:
 def test_case8_threshold_and_growth_across_it() -> None:
     """Case 8's forced orbit period-doubles near s ≈ 0.053 (issue 25's review), and the computed
     multiplier is the rate at which a perturbation grows or decays over many periods of the flow."""
-    from lubrig_ros.app.study import floquet as study_floquet
-    from lubrig_ros.app.study.runs import study_configs
+    from lubrig_ros.study import floquet as study_floquet
+    from lubrig_ros.study.runs import study_configs
 
     result = study_floquet.period_doubling()
     assert 0.045 < result.threshold < 0.06

@@ -18,7 +18,7 @@ from test_report import _bag
 
 from lubrig_ros.report import write_report
 from lubrig_ros.report.html import PageError, markdown_to_html
-from lubrig_ros.report.paper import CASE_FIGURES
+from lubrig_ros.study.page import CASE_FIGURES
 
 
 class _Refs(HTMLParser):

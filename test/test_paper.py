@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from lubrig_ros.app.study.statements import STATEMENTS
 from lubrig_ros.cli.main import main
 from lubrig_ros.cli.paper import committed_scan
 from lubrig_ros.core.params import CONVENTIONS
+from lubrig_ros.study.statements import STATEMENTS
 
 
 @pytest.mark.slow

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from lubrig_ros.app.study import checks as check
-from lubrig_ros.app.study.runs import GONE_FRACTIONS
 from lubrig_ros.core.params import RigParameters
+from lubrig_ros.study import checks as check
+from lubrig_ros.study.runs import GONE_FRACTIONS
 
 RIG = RigParameters()
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 from functools import cache
 
-from lubrig_ros.app.study import runs as study_runs
-from lubrig_ros.app.study import statements as study
 from lubrig_ros.cli.paper import committed_scan
 from lubrig_ros.core.params import RigParameters
 from lubrig_ros.core.presets import load_case
+from lubrig_ros.study import runs as study_runs
+from lubrig_ros.study import statements as study
 
 #: Statements the presets' reading (paper, γ = 1/ω0) agrees with, measured 2026-12 (27 of 38).
 PRESET_AGREES = {

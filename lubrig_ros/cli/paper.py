@@ -15,10 +15,11 @@ from pathlib import Path
 from lubrig_ros.core.errors import InputError
 
 from ..app.rundir import prepare_output_dir
-from ..app.study.runs import read_scan_csv, write_scan_csv
 from ..core.presets import config_dir, default_config
 from ..core.schema import SIMULATION_FIELDS
-from ..report.paper import HTML_PAGE, MIN_DURATION, PAGE_OUTPUTS, copy_to_docs, run_paper, total_rig_time
+from ..study.page import HTML_PAGE
+from ..study.reproduce import MIN_DURATION, PAGE_OUTPUTS, copy_to_docs, run_paper, total_rig_time
+from ..study.runs import read_scan_csv, write_scan_csv
 from .common import add_force, check_fits_in_memory, parse_finite, parse_workers
 from .progress import Progress
 
@@ -42,8 +43,8 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     workers = parse_workers(args.workers) if args.workers is not None else None
     if args.recompute_scan:
+        from ..study.scan import run_scan
         from ..sweep.engine import LOCAL, SERIAL
-        from ..sweep.study import run_scan
 
         scan = run_scan(out / "scan", scheduler=LOCAL if workers else SERIAL, workers=workers)
         source = f"recomputed in {time.perf_counter() - started:.0f} s"

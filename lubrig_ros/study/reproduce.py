@@ -1,8 +1,8 @@
 """`lubrig paper`: reproduce the study offline and score every statement of it, per reading.
 
 For each named velocity-coupling convention (physical γ = 1, paper γ = 1/ω0, hertz γ = 1/f0) it
-runs the ten Table 1 cases and the 2e-8 m/s stick-slip run, measures them (app.study.runs) and
-evaluates every statement of the model doc's section 8 (app.study.statements.STATEMENTS); with a coupling
+runs the ten Table 1 cases and the 2e-8 m/s stick-slip run, measures them (study.runs) and
+evaluates every statement of the model doc's section 8 (study.statements.STATEMENTS); with a coupling
 scan table ({s: metrics}, from the sweep engine or the committed CSV) it adds the scorecard over
 s = γ · A / A_default with its figures. DIR/comparison.md embeds every figure from DIR/study/
 (relative links only, so the page and DIR/study/ can be copied into docs/ as they are); the run
@@ -26,12 +26,10 @@ import numpy as np
 from lubrig_ros.core.errors import InputError
 
 from ..app.selection import base_config
-from ..app.study.floquet import period_doubling
-from ..app.study.runs import STICKSLIP, Metrics, case_metrics, rig_with_coupling, study_configs
-from ..app.study.statements import STATEMENTS, Verdict, scorecard
 from ..core.params import CONVENTIONS, RigParameters
 from ..core.run import simulate, summarize
-from .paper_page import (
+from .floquet import period_doubling
+from .page import (
     CASE_FIGURES,
     FIGURES,
     HTML_PAGE,
@@ -41,6 +39,8 @@ from .paper_page import (
     scan_scorecards,
     score,
 )
+from .runs import STICKSLIP, Metrics, case_metrics, rig_with_coupling, study_configs
+from .statements import STATEMENTS, Verdict, scorecard
 
 MIN_DURATION = 4.0
 #: Worker processes `lubrig paper` uses at most (its runs and the Floquet computation in parallel).
@@ -149,7 +149,7 @@ def paper_workers() -> int:
 
 
 def _scan_figures(cards: dict[float, list[Verdict]], scan: dict[float, Metrics], figures: Path) -> list[str]:
-    from ..figures.study import agreed_figure, measures_figure, save, verdict_map_figure
+    from .figures import agreed_figure, measures_figure, save, verdict_map_figure
 
     marks = readings()
     s = np.array(sorted(cards))
@@ -208,7 +208,7 @@ def run_paper(
     from ..app.rundir import prepare_output_dir
     from ..figures import run, timeseries  # noqa: F401
     from ..figures.curves import plot_friction_curve, plot_stability_map, save_figure
-    from .html import write_html_page
+    from ..report.html import write_html_page
 
     if not (np.isfinite(duration) and duration >= MIN_DURATION):
         raise InputError(f"--duration {duration!r} is not valid; expected at least {MIN_DURATION:g} s")

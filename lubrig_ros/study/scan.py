@@ -2,7 +2,7 @@
 
 One sweep point per (coupling s, study run): the ten Table 1 cases and the 2e-8 m/s stick-slip
 run (case 0), each simulated with γ = s (default contact area) and measured by
-app.study.runs.case_metrics. Points run serially or on Dask like any sweep (resumable, one JSON file
+study.runs.case_metrics. Points run serially or on Dask like any sweep (resumable, one JSON file
 per point); `run_scan` refines around every transition of the scorecard by adding the geometric
 midpoints of neighbouring couplings whose verdicts differ.
 """
@@ -17,13 +17,13 @@ from typing import Any
 
 import numpy as np
 
-from ..app.study.runs import CASES, STICKSLIP, Metrics, case_metrics, study_configs
-from ..app.study.statements import transitions
 from ..core.presets import from_mapping
 from ..core.run import simulate
-from .engine import SERIAL, run_sweep
-from .point import point_record
-from .spec import Axis, Point, SweepSpec
+from ..sweep.engine import SERIAL, run_sweep
+from ..sweep.point import point_record
+from ..sweep.spec import Axis, Point, SweepSpec
+from .runs import CASES, STICKSLIP, Metrics, case_metrics, study_configs
+from .statements import transitions
 
 #: Default scan: 1e-3 … 1, 25 log-spaced values, then refined three times around every transition.
 SCAN_START, SCAN_STOP, SCAN_POINTS, SCAN_REFINE = 1e-3, 1.0, 25, 3
@@ -60,7 +60,7 @@ def run_study_point(point: Point) -> dict[str, Any]:
 
 
 def _collect(directory: Path, spec: SweepSpec, scan: dict[float, Metrics]) -> None:
-    from .store import SweepStore
+    from ..sweep.store import SweepStore
 
     for record in SweepStore(directory, spec).finished().values():
         if record.get("status") != "ok":

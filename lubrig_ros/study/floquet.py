@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...core import floquet
-from ...core.run import simulate
+from ..core import floquet
+from ..core.run import simulate
 from .runs import study_configs
 
 #: The case whose forced orbit is followed, and the settings of the computation.

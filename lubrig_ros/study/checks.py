@@ -1,12 +1,12 @@
 """The criteria of the study's statements: one function per check, (metrics, rig) -> (agrees, measured).
 
-Each check reads the metrics of app/study/runs.py (`Metrics`: run key -> numbers) and, for the
+Each check reads the metrics of study/runs.py (`Metrics`: run key -> numbers) and, for the
 friction-curve and stability statements, the rig with its velocity coupling; it returns whether
-the statement holds and what was measured, in words. app/study/statements.py pairs them with the study's
+the statement holds and what was measured, in words. study/statements.py pairs them with the study's
 words in `STATEMENTS`.
 """
 
-# ruff: noqa: D103  (each check is described by its statement's criterion in app/study/statements.py STATEMENTS)
+# ruff: noqa: D103  (each check is described by its statement's criterion in study/statements.py STATEMENTS)
 from __future__ import annotations
 
 import math
@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from ...core import criteria
-from ...core.friction import friction_coefficient, friction_minimum, friction_peak
-from ...core.params import RigParameters
-from ...core.stability import critical_damping_ratio, unstable_intervals
+from ..core import criteria
+from ..core.friction import friction_coefficient, friction_minimum, friction_peak
+from ..core.params import RigParameters
+from ..core.stability import critical_damping_ratio, unstable_intervals
 from .runs import GONE_FRACTION, GONE_FRACTIONS, REALISTIC_ZETA, STICKSLIP, Metrics
 
 #: "Identical amplitude levels" (C2a): the ratio within [1/(1 + t), 1 + t]; chosen t and the

@@ -1,4 +1,4 @@
-"""The page's account of case 8's period doubling (app/study/floquet.py): method, result, multipliers."""
+"""The page's account of case 8's period doubling (study/floquet.py): method, result, multipliers."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from ..app.study.floquet import RTOL as FLOQUET_RTOL
-from ..app.study.floquet import SETTLE, PeriodDoubling
+from .floquet import RTOL as FLOQUET_RTOL
+from .floquet import SETTLE, PeriodDoubling
 
 
 def doubling_section(doubling: PeriodDoubling | None, numbers: dict[str, Any]) -> list[str]:
@@ -19,7 +19,7 @@ def doubling_section(doubling: PeriodDoubling | None, numbers: dict[str, Any]) -
         "## Case 8's period doubling, computed",
         "",
         "Case 8 drives the band at 20 Hz = 2 f0; its 10 Hz response needs the forced 20 Hz orbit to "
-        "lose stability by period doubling. Computed by `lubrig_ros/app/study/floquet.py` "
+        "lose stability by period doubling. Computed by `lubrig_ros/study/floquet.py` "
         "(numerics in `lubrig_ros/core/floquet.py`): the periodic orbit of the forced rig by "
         "shooting (Newton's method on the Poincaré map over one band period, 0.05 s, from the state "
         f"after {SETTLE:g} s of case 8, then continued in s from the nearest orbit solved); its "

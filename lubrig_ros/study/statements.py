@@ -1,7 +1,7 @@
 """The study's statements (model doc, section 8) as data, and the scorecard that checks them.
 
 `STATEMENTS` lists every statement of section 8 with its explicit criterion; `scorecard` evaluates
-them all for one velocity coupling from the metrics (app/study/runs.py) of the ten cases and the
+them all for one velocity coupling from the metrics (study/runs.py) of the ten cases and the
 stick-slip run. The same functions serve the named conventions and the coupling scan
 (s = γ · A / A_default), so a statement means the same thing everywhere.
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ...core.params import RigParameters
+from ..core.params import RigParameters
 from . import checks as check
 from .runs import GONE_FRACTION, GONE_FRACTIONS, REALISTIC_ZETA, Metrics, rig_with_coupling
 
@@ -349,7 +349,7 @@ def score_span(verdicts: list[Verdict]) -> tuple[int, int]:
 
 def transitions(scan: dict[float, Metrics]) -> list[tuple[float, float]]:
     """Neighbouring couplings (s_lo, s_hi) of the scan between which some verdict changes."""
-    from ...core.params import RigParameters
+    from ..core.params import RigParameters
 
     values = sorted(scan)
     agreed = [

@@ -1,7 +1,7 @@
 """The study's runs and what is measured of them: the ten Table 1 cases and the stick-slip run.
 
 `case_metrics` measures one run (a Table 1 case or the constant-velocity stick-slip run) with the
-criteria of core/criteria.py into the numbers the statements of app/study/statements.py need; `study_configs`
+criteria of core/criteria.py into the numbers the statements of study/statements.py need; `study_configs`
 and `measure` make and run the study's runs for one velocity coupling; the coupling scan
 (s = γ · A / A_default, one row per coupling and run) is kept as a CSV table (`write_scan_csv`,
 `read_scan_csv`, committed under docs/study/).
@@ -17,13 +17,13 @@ import numpy as np
 
 from lubrig_ros.core.errors import InputError
 
-from ...core import criteria
-from ...core.dense import mu_extremes
-from ...core.friction import friction_coefficient, stick_velocity
-from ...core.params import RigParameters
-from ...core.presets import RunConfig
-from ...core.profiles import RegularCycle
-from ...core.trajectory import Trajectory
+from ..core import criteria
+from ..core.dense import mu_extremes
+from ..core.friction import friction_coefficient, stick_velocity
+from ..core.params import RigParameters
+from ..core.presets import RunConfig
+from ..core.profiles import RegularCycle
+from ..core.trajectory import Trajectory
 
 #: Damping ratios up to this count as "any (realistic) damping" in the stability statements.
 REALISTIC_ZETA = 0.1
@@ -129,7 +129,7 @@ def rig_with_coupling(rig: RigParameters, coupling: str | float) -> RigParameter
 
 def study_configs(coupling: str | float, duration: float = 20.0) -> dict[int, RunConfig]:
     """The ten Table 1 cases (1–10) and the 2e-8 m/s stick-slip run (key 0) with this coupling."""
-    from ...core.presets import config_dir, load_case, load_config
+    from ..core.presets import config_dir, load_case, load_config
 
     configs = {STICKSLIP: load_config(config_dir() / "stickslip.yaml")}
     configs.update({n: load_case(n) for n in CASES})
@@ -138,7 +138,7 @@ def study_configs(coupling: str | float, duration: float = 20.0) -> dict[int, Ru
 
 def measure(coupling: str | float, duration: float = 20.0) -> Metrics:
     """Simulate every study run with this coupling and return their metrics."""
-    from ...core.run import simulate
+    from ..core.run import simulate
 
     return {n: case_metrics(c, simulate(c)) for n, c in study_configs(coupling, duration).items()}
 

@@ -3,7 +3,7 @@
 Linear-theory thresholds, case 8's Floquet threshold, the structural decay of the 10 Hz
 transient, and what the coupling scan shows.
 
-`numbers` returns them by the names the templates of report/paper_page.MECHANISMS use.
+`numbers` returns them by the names the templates of study/page.MECHANISMS use.
 """
 
 from __future__ import annotations
@@ -13,12 +13,12 @@ from typing import Any
 
 import numpy as np
 
-from ..app.study.checks import ABOUT_WINDOW, GONE_AFTER_S, SAME_TOLERANCE
-from ..app.study.floquet import PeriodDoubling
-from ..app.study.runs import GONE_FRACTION, Metrics, rig_with_coupling
-from ..app.study.statements import Verdict
 from ..core.params import RigParameters
 from ..core.stability import critical_damping_ratio
+from .checks import ABOUT_WINDOW, GONE_AFTER_S, SAME_TOLERANCE
+from .floquet import PeriodDoubling
+from .runs import GONE_FRACTION, Metrics, rig_with_coupling
+from .statements import Verdict
 
 
 def agreement_intervals(cards: dict[float, list[Verdict]], key: str) -> str:

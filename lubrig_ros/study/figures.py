@@ -8,7 +8,7 @@ import numpy as np
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 
-from . import style
+from ..figures import style
 
 #: Named readings drawn as vertical markers: {label: s}.
 Readings = dict[str, float]

@@ -1,7 +1,7 @@
 """The page of `lubrig paper`: scores, scorecard per reading, the coupling scan, mechanisms, cases.
 
-`comparison_markdown` composes DIR/comparison.md from the verdicts (app/study/statements.py) and the run
-summaries that report/paper.py produced; every number on it is measured, every figure is linked
+`comparison_markdown` composes DIR/comparison.md from the verdicts (study/statements.py) and the run
+summaries that study/reproduce.py produced; every number on it is measured, every figure is linked
 relative to the page (DIR/study/).
 """
 
@@ -11,12 +11,12 @@ import math
 from typing import Any
 
 from ..app.selection import base_config
-from ..app.study.floquet import PeriodDoubling
-from ..app.study.runs import CASES, Metrics, rig_with_coupling
-from ..app.study.statements import SPANS, STATEMENTS, Verdict, score_span, scorecard
 from ..core.params import CONVENTIONS, RigParameters
-from . import paper_numbers
-from .paper_floquet import doubling_section
+from . import numbers
+from .floquet import PeriodDoubling
+from .floquet_page import doubling_section
+from .runs import CASES, Metrics, rig_with_coupling
+from .statements import SPANS, STATEMENTS, Verdict, score_span, scorecard
 
 FIGURES = "study"  # figure directory next to the page (docs/study/ once copied)
 #: Every figure of a case, all shown on the page (figures/timeseries.py and wavelet.png).
@@ -216,7 +216,7 @@ def comparison_markdown(
     total = len(STATEMENTS)
     if scan_cards is None:
         scan_cards = scan_scorecards(scan) if scan else {}
-    numbers = paper_numbers.numbers(scan, scan_cards, doubling)
+    measured = numbers.numbers(scan, scan_cards, doubling)
     lines = [
         "# The study reproduced, statement by statement",
         "",
@@ -224,7 +224,7 @@ def comparison_markdown(
         f"runs of {duration:g} s per case for every named reading of the velocity coupling γ "
         "(v_rel = v_band − γ ẋ), each measured by the criteria of `lubrig_ros/core/criteria.py` and "
         f"scored against every statement of the study ({total} statements, each with what the "
-        "study says and the criterion, in `lubrig_ros/app/study/statements.py`; the model as implemented: "
+        "study says and the criterion, in `lubrig_ros/study/statements.py`; the model as implemented: "
         "docs/model.md). "
         "Stationary measures use the second half of each run; spectral peaks are those of the "
         "Hann-windowed amplitude spectrum of x there (strongest first, amplitudes, not powers); μ's "
@@ -294,7 +294,7 @@ def comparison_markdown(
             "## Coupling scan",
             "",
             "The scorecard over s (log-spaced from 1e-3 to 1, refined around every change of a "
-            "verdict), run on the sweep engine (`lubrig_ros/sweep/study.py`, one point per s and "
+            "verdict), run on the sweep engine (`lubrig_ros/study/scan.py`, one point per s and "
             "run). Dotted lines: the named readings.",
             "",
         ]
@@ -307,7 +307,7 @@ def comparison_markdown(
         for statement in STATEMENTS:
             lines.append(
                 f"| {statement.key} | {_cell(statement.study)} | "
-                f"{paper_numbers.agreement_intervals(scan_cards, statement.key)} |"
+                f"{numbers.agreement_intervals(scan_cards, statement.key)} |"
             )
     lines += [
         "",
@@ -321,7 +321,7 @@ def comparison_markdown(
         if not missing:
             continue
         fallback = STICKSLIP_MECHANISM if missing == ["physical"] else "see the measured values below"
-        text = MECHANISMS.get(statement.key, fallback).format(**numbers)
+        text = MECHANISMS.get(statement.key, fallback).format(**measured)
         lines.append(f"| {statement.key} | {', '.join(missing)} | {_cell(text)} |")
     lines += [
         "",
@@ -329,18 +329,18 @@ def comparison_markdown(
         "",
         "- *Which s reproduces the most statements?* " + _best_text(scan_cards, total),
         f"- *Where does the 3e-8 m/s edge fall?* The unstable interval at ζ = 0.1 ends at 3e-8 m/s "
-        f"for s = {numbers['s_edge']:.3g} (paper reading: s = {marks['paper']:.3g}); ζ_crit ∝ s.",
-        f"- *Growth on the V1 plateau (cases 3, 6)* needs ζ_crit(1e-7 m/s) = {numbers['zc_v1']:.3g} s "
-        f"> 0.01, i.e. s > {numbers['s_v1']:.3g}; the two statement groups cannot both hold.",
-        f"- *Case 8's 10 Hz:* the forced 20 Hz orbit period-doubles at s = {numbers['s_pd']:.4g} "
+        f"for s = {measured['s_edge']:.3g} (paper reading: s = {marks['paper']:.3g}); ζ_crit ∝ s.",
+        f"- *Growth on the V1 plateau (cases 3, 6)* needs ζ_crit(1e-7 m/s) = {measured['zc_v1']:.3g} s "
+        f"> 0.01, i.e. s > {measured['s_v1']:.3g}; the two statement groups cannot both hold.",
+        f"- *Case 8's 10 Hz:* the forced 20 Hz orbit period-doubles at s = {measured['s_pd']:.4g} "
         "(a Floquet multiplier passes −1, computed below); below it case 8 settles to a small 20 Hz "
         "orbit.",
         f"- *μ up to 0.16 in case 8* is reached between samples at every scanned s ≥ "
-        f"{numbers['c8_s_peak']:.3g} (μ max {numbers['c8_peak']:.4g}, the friction peak), but the "
-        f"same stick phases take μ below 6.5e-3 (min {numbers['c8_min_lo']:.3g} … "
-        f"{numbers['c8_min_hi']:.3g}), so the study's range 6.5e-3 … 0.16 holds nowhere as a whole.",
+        f"{measured['c8_s_peak']:.3g} (μ max {measured['c8_peak']:.4g}, the friction peak), but the "
+        f"same stick phases take μ below 6.5e-3 (min {measured['c8_min_lo']:.3g} … "
+        f"{measured['c8_min_hi']:.3g}), so the study's range 6.5e-3 … 0.16 holds nowhere as a whole.",
         "",
-        *doubling_section(doubling, numbers),
+        *doubling_section(doubling, measured),
         "## Measured values per reading",
         "",
     ]
