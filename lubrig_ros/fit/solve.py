@@ -51,6 +51,7 @@ STATE_STAGE_EVALUATIONS = 10
 SCAN_POINTS = 128
 SCAN_SPAN = math.log(1.25)
 SCAN_LINEAR_SPAN = 0.25
+SCAN_STARTS = 3
 #: Default length of a shooting segment, s.
 SEGMENT_SECONDS = 0.25
 
@@ -229,27 +230,34 @@ def fit(
     z0 = np.concatenate([theta, problem.pack(start, problem.initial_states(start))[len(parameters) :]])
     runner = Runner(problem, workers)
     try:
-        if problem.slips:
-            z0 = _scan(runner, z0, low, high)
-        z0 = _fit_states(runner, z0, max_evaluations)
-        solution = least_squares(
-            runner.residuals,
-            z0,
-            jac=lambda z: csr_matrix(runner.jacobian(z)),
-            bounds=(low, high),
-            method="trf",
-            tr_solver="lsmr",
-            x_scale=1.0,
-            max_nfev=max_evaluations,
-        )
+        starts = _scan(runner, z0, low, high) if problem.slips else [z0]
+        solutions = [_local_fit(runner, z, low, high, max_evaluations) for z in starts]
+        solution = min(solutions, key=lambda s: float(s.cost))
         jac = runner.jacobian(solution.x)
     finally:
         runner.close()
     return _result(problem, parameters, start, solution, jac, workers, time.perf_counter() - started)
 
 
-def _scan(runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """The start moved to the best of SCAN_POINTS parameter sets around it (stick-slip records).
+def _local_fit(
+    runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray, max_evaluations: int
+) -> Any:
+    """The states' stage, then bounded least squares on everything from there (scipy's result)."""
+    z0 = _fit_states(runner, z0, max_evaluations)
+    return least_squares(
+        runner.residuals,
+        z0,
+        jac=lambda z: csr_matrix(runner.jacobian(z)),
+        bounds=(low, high),
+        method="trf",
+        tr_solver="lsmr",
+        x_scale=1.0,
+        max_nfev=max_evaluations,
+    )
+
+
+def _scan(runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray) -> list[np.ndarray]:
+    """The SCAN_STARTS best of SCAN_POINTS parameter sets around the start (stick-slip records).
 
     On a stick-slip record the local fit cannot carry a slip far: a slip's time moves with the
     threshold x = N μ_peak / k, the cost grows with the distance between the model's slip and the
@@ -258,7 +266,10 @@ def _scan(runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray) -> 
     off). So the free parameters are first scanned over θ ± SCAN_SPAN (a ratio of 1.25 for a
     positive parameter, ±25 % of its scale for a linear one), on an unscrambled Sobol' sequence of
     SCAN_POINTS points (deterministic), each one run of the record from the data's states; the
-    lowest cost, the start included, is the new start.
+    SCAN_STARTS of lowest cost (the start among the candidates) each start a local fit, and the
+    fit keeps the lowest final cost: the cost of a stick-slip record also has nearby local minima
+    in the weakly seen ζ (measured: from one start, seed 4 of the test's record ended at ζ −16 %
+    with the residual RMS 1.075 × the noise against 1.03 × at the truth).
     """
     problem = runner.problem
     count = len(problem.parameters)
@@ -274,9 +285,8 @@ def _scan(runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray) -> 
         float(np.sum(problem.residuals_of(run, states) ** 2))
         for run, (_, states, _) in zip(runner.map(tasks), tasks, strict=True)
     ]
-    best = int(np.argmin(costs))
-    values, states = tasks[best][0], tasks[best][1]
-    return problem.pack(values, states)
+    best = np.argsort(costs)[:SCAN_STARTS]
+    return [problem.pack(tasks[k][0], tasks[k][1]) for k in best]
 
 
 def _fit_states(runner: Runner, z0: np.ndarray, max_evaluations: int) -> np.ndarray:
