@@ -262,8 +262,8 @@ def _scan(runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray) -> 
     On a stick-slip record the local fit cannot carry a slip far: a slip's time moves with the
     threshold x = N μ_peak / k, the cost grows with the distance between the model's slip and the
     data's, and its Gauss-Newton model does not see past the slip's edge (measured on case 1
-    physical, 10 s: from ζ −10 %, f0 −5 %, G +10 %, a threshold 20 % high, the local fit ends 8–24 %
-    off). So the free parameters are first scanned over θ ± SCAN_SPAN (a ratio of 1.25 for a
+    physical, 10 s: from ζ −10 %, f0 −5 %, G +10 %, a threshold 21 % high, the local fit ends with
+    f0 −8.5 %, G −24 % and ζ near 0). So the free parameters are first scanned over θ ± SCAN_SPAN (a ratio of 1.25 for a
     positive parameter, ±25 % of its scale for a linear one), on an unscrambled Sobol' sequence of
     SCAN_POINTS points (deterministic), each one run of the record from the data's states; the
     SCAN_STARTS of lowest cost (the start among the candidates) each start a local fit, and the
@@ -301,7 +301,7 @@ def _fit_states(runner: Runner, z0: np.ndarray, max_evaluations: int) -> np.ndar
     line through the data, precise already, and fitted at start parameters a few per cent off it
     would move: the state would put the model's slip at the data's slip time, absorbing the
     threshold's error, and the full fit would start from that compromise (measured on case 1
-    physical from ζ −10 %, f0 −5 %, G +10 %: ends 7–17 % off with those states fitted here,
+    physical, 10 s, from ζ −10 %, f0 +5 %, G −10 %: ends 6–26 % off with those states fitted here,
     within 1 standard error with them held).
     """
     problem = runner.problem
