@@ -263,13 +263,13 @@ def _scan(runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray) -> 
     threshold x = N μ_peak / k, the cost grows with the distance between the model's slip and the
     data's, and its Gauss-Newton model does not see past the slip's edge (measured on case 1
     physical, 10 s: from ζ −10 %, f0 −5 %, G +10 %, a threshold 21 % high, the local fit ends with
-    f0 −8.5 %, G −24 % and ζ near 0). So the free parameters are first scanned over θ ± SCAN_SPAN (a ratio of 1.25 for a
-    positive parameter, ±25 % of its scale for a linear one), on an unscrambled Sobol' sequence of
-    SCAN_POINTS points (deterministic), each one run of the record from the data's states; the
-    SCAN_STARTS of lowest cost (the start among the candidates) each start a local fit, and the
-    fit keeps the lowest final cost: the cost of a stick-slip record also has nearby local minima
-    in the weakly seen ζ (measured: from one start, seed 4 of the test's record ended at ζ −16 %
-    with the residual RMS 1.075 × the noise against 1.03 × at the truth).
+    f0 −8.5 %, G −24 % and ζ near 0). So the free parameters are first scanned over θ ± SCAN_SPAN
+    (a ratio of 1.25 for a positive parameter, ±25 % of its scale for a linear one), on an
+    unscrambled Sobol' sequence of SCAN_POINTS points (deterministic), each one run of the record
+    from the data's states; the SCAN_STARTS of lowest cost (the start among the candidates) each
+    start a local fit, and the fit keeps the lowest final cost: the cost of a stick-slip record
+    also has nearby local minima in the weakly seen ζ (measured: from one start, seed 4 of the
+    test's record ended at ζ −16 % with the residual RMS 1.075 × the noise, 1.03 × at the truth).
     """
     problem = runner.problem
     count = len(problem.parameters)
