@@ -25,7 +25,6 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
-from scipy.stats import qmc
 
 from ..core.presets import RunConfig
 from .data import MeasuredData
@@ -271,6 +270,8 @@ def _scan(runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray) -> 
     also has nearby local minima in the weakly seen ζ (measured: from one start, seed 4 of the
     test's record ended at ζ −16 % with the residual RMS 1.075 × the noise, 1.03 × at the truth).
     """
+    from scipy.stats import qmc  # scipy.stats is slow to import and only stick-slip needs it
+
     problem = runner.problem
     count = len(problem.parameters)
     spans = np.array([SCAN_SPAN if p.logarithmic else SCAN_LINEAR_SPAN for p in problem.parameters])
