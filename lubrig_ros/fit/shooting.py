@@ -38,6 +38,7 @@ from ..core.integrator import IntegrationError, RigIntegrator
 from ..core.presets import RunConfig
 from .data import MeasuredData
 from .parameters import FreeParameter, with_values
+from .stick import segment_starts, stuck_positions, stuck_samples
 
 #: Weight of a continuity defect against one sample's residual (both in noise units).
 DEFECT_WEIGHT = 10.0
@@ -83,18 +84,29 @@ class ShootingProblem:
     segment_samples: int
     defect_weight: float = DEFECT_WEIGHT
     starts: np.ndarray = field(init=False)
+    stuck: np.ndarray = field(init=False)  # per sample: the measured mass sticks (stick.py)
+    tied: np.ndarray = field(init=False)  # per segment: starts stuck, ẋ_i = v_band / γ (not free)
     sigma: dict[str, float] = field(init=False)
     state_scale: tuple[float, float] = field(init=False)
     state_steps: tuple[float, float] = field(init=False)  # forward-difference steps of x_i, ẋ_i
 
     def __post_init__(self) -> None:
         n = self.data.time.size
-        count = max(1, (n - 1) // self.segment_samples)
-        self.starts = np.array([k * self.segment_samples for k in range(count)], dtype=np.int64)
         self.sigma = {name: noise_level(values) for name, values in self.data.streams.items()}
+        self.stuck = self._stuck()
+        self.starts = segment_starts(n, self.segment_samples, self.stuck, self.data.sample_rate)
+        self.tied = self.stuck[self.starts]
         length = self._length_scale()
         self.state_scale = (length, length * self.config.rig.angular_frequency)
         self.state_steps = (STEP, min(STEP, self._stick_step() / self.state_scale[1]))
+
+    def _stuck(self) -> np.ndarray:
+        """Samples where the measured mass sticks to the band (stick.stuck_samples; none without x)."""
+        x = self.data.displacement
+        if x is None or self._peak_velocity() is None:
+            return np.zeros(self.data.time.size, dtype=bool)
+        gamma, sigma = self.config.rig.velocity_factor, self.sigma["displacement"]
+        return stuck_samples(x, self.data.band_velocity, self.data.sample_rate, gamma, sigma)
 
     def _stick_step(self) -> float:
         """A velocity step (m/s) that keeps a stuck mass stuck: 1e-3 of the friction peak's v_rel / γ.
@@ -103,9 +115,14 @@ class ShootingProblem:
         for the study's law); a forward-difference step of ẋ_i beyond it would make the moved run
         slip and the Jacobian column meaningless. A law without a peak puts no bound.
         """
-        rig = self.config.rig
-        peak = law_for(rig.friction).peak(rig.friction)
-        return math.inf if peak is None else 1e-3 * peak.velocity / rig.velocity_factor
+        peak = self._peak_velocity()
+        return math.inf if peak is None else 1e-3 * peak / self.config.rig.velocity_factor
+
+    def _peak_velocity(self) -> float | None:
+        """v_rel of the start rig's friction peak (m/s), None for a law without one."""
+        friction = self.config.rig.friction
+        peak = law_for(friction).peak(friction)
+        return None if peak is None else float(peak.velocity)
 
     def _length_scale(self) -> float:
         """Displacement scale: the measured range, else N μ_range / k of the start rig."""
@@ -115,6 +132,11 @@ class ShootingProblem:
         assert mu is not None
         rig = self.config.rig
         return float(np.ptp(mu) or abs(mu[0]) or 1e-3) * rig.normal_force / rig.stiffness
+
+    @property
+    def slips(self) -> bool:
+        """True when the segment layout holds slips between stick phases (a stick-slip record)."""
+        return bool(np.any(np.diff(self.starts) > self.segment_samples))
 
     @property
     def segments(self) -> int:
@@ -127,26 +149,62 @@ class ShootingProblem:
         return np.append(self.starts[1:], self.data.time.size - 1)
 
     # -- vector z = [θ (free parameters), x_0/Lx, ẋ_0/Lv, x_1/Lx, ...] --------------------------
+    @property
+    def free_states(self) -> np.ndarray:
+        """(segments, 2) mask of the states that are variables of the fit (all but tied ẋ_i)."""
+        mask = np.ones((self.segments, 2), dtype=bool)
+        mask[self.tied, 1] = False
+        return mask
+
+    def state_columns(self) -> np.ndarray:
+        """(segments, 2): index in z of each free state (x_i, ẋ_i); −1 for a tied ẋ_i."""
+        mask = self.free_states
+        index = np.full(mask.shape, -1, dtype=np.int64)
+        index[mask] = len(self.parameters) + np.arange(np.count_nonzero(mask))
+        return index
+
     def pack(self, values: np.ndarray, states: np.ndarray) -> np.ndarray:
-        """The optimizer's vector of physical values and segment start states."""
+        """The optimizer's vector of physical values and free segment start states."""
         theta = [p.to_theta(v) for p, v in zip(self.parameters, values, strict=True)]
-        return np.concatenate([theta, (states / np.array(self.state_scale)).ravel()])
+        return np.concatenate([theta, (states / np.array(self.state_scale))[self.free_states]])
 
     def unpack(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(physical values, states (segments, 2)) of an optimizer vector."""
+        """(physical values, states (segments, 2)) of an optimizer vector, tied ẋ_i filled in."""
         count = len(self.parameters)
         values = np.array([p.from_theta(t) for p, t in zip(self.parameters, z[:count], strict=True)])
-        states = z[count:].reshape(-1, 2) * np.array(self.state_scale)
-        return values, states
+        states = np.zeros((self.segments, 2))
+        states[self.free_states] = z[count:]
+        return values, self.tie(values, states * np.array(self.state_scale))
+
+    def tie(self, values: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """`states` with every tied segment's ẋ_i set stuck: v_rel = 1e-3 of the peak's velocity.
+
+        Not v_rel = 0: at exactly zero the friction law gives μ = 0 with an unbounded slope, and the
+        compiled Radau stays there (measured: a stuck start at x = 5.9e-8 m in case 1 physical kept
+        v_rel = 0 and μ = 0 over 30 samples, against μ = 0.025 from v_rel = ±1e-13 m/s). From any
+        v_rel inside the first zone it settles onto the stick branch within the first step.
+        """
+        if not self.tied.any():
+            return states
+        gamma = self.config_for(values).rig.velocity_factor
+        creep = 1e-3 * (self._peak_velocity() or 0.0)
+        tied = states.copy()
+        tied[self.tied, 1] = (self.data.band_velocity[self.starts[self.tied]] - creep) / gamma
+        return tied
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of z: the physical ranges of the parameters, states free."""
-        low = [p.theta_bounds()[0] for p in self.parameters] + [-np.inf] * (2 * self.segments)
-        high = [p.theta_bounds()[1] for p in self.parameters] + [np.inf] * (2 * self.segments)
+        free = int(np.count_nonzero(self.free_states))
+        low = [p.theta_bounds()[0] for p in self.parameters] + [-np.inf] * free
+        high = [p.theta_bounds()[1] for p in self.parameters] + [np.inf] * free
         return np.array(low), np.array(high)
 
     def initial_states(self, values: np.ndarray) -> np.ndarray:
-        """Segment start states from the data (smoothed x and its derivative), else from a run."""
+        """Segment start states from the data (smoothed x and its derivative), else from a run.
+
+        A tied segment (starting stuck) takes x_i from the stick line through the data around it
+        and ẋ_i stuck (tie).
+        """
         x = self.data.displacement
         if x is None:
             run = self.continuous_run(values, None)
@@ -155,7 +213,13 @@ class ShootingProblem:
         window = max(window, 5)
         smooth = savgol_filter(x, window, 3)
         slope = savgol_filter(x, window, 3, deriv=1, delta=1.0 / self.data.sample_rate)
-        return np.column_stack([smooth[self.starts], slope[self.starts]])
+        states = np.column_stack([smooth[self.starts], slope[self.starts]])
+        if self.tied.any():
+            band, rate = self.data.band_velocity, self.data.sample_rate
+            gamma, sigma = self.config.rig.velocity_factor, self.sigma["displacement"]
+            tied = self.starts[self.tied]
+            states[self.tied, 0] = stuck_positions(x, band, rate, gamma, sigma, self.stuck, tied)
+        return self.tie(values, states)
 
     # -- runs ------------------------------------------------------------------------------------
     def config_for(self, values: np.ndarray) -> RunConfig:
@@ -178,6 +242,7 @@ class ShootingProblem:
         x = np.empty(n)
         mu = np.empty(n)
         ends = np.empty((self.segments - 1, 2))
+        states = self.tie(values, states)
         try:
             integrator = self.integrator(values)
             band, time = self.data.band_velocity, self.data.time
@@ -248,12 +313,13 @@ class ShootingProblem:
             step = STEP if z[j] + STEP <= high[j] else -STEP
             moved = z.copy()
             moved[j] += step
-            tasks.append((self.unpack(moved)[0], states, step))
+            moved_values = self.unpack(moved)[0]
+            tasks.append((moved_values, self.tie(moved_values, states), step))
         for column in range(2):
             step = self.state_steps[column]
             moved_states = states.copy()
             moved_states[:, column] += step * self.state_scale[column]
-            tasks.append((values, moved_states, step))
+            tasks.append((values, self.tie(values, moved_states), step))
         return tasks
 
     def jacobian_from(self, z: np.ndarray, base: np.ndarray, runs: list[Run]) -> np.ndarray:
@@ -272,12 +338,15 @@ class ShootingProblem:
         lx, lv = self._defect_scales()
         data_rows = self.data_rows()
         n = self.data.time.size
+        columns = self.state_columns()
         for column in range(2):
             offset = count if parameters else 0
             _, task_states, step = tasks[offset + column]
             delta = (self.residuals_of(runs[offset + column], task_states) - base) / step
             for i in range(self.segments):
-                col = count + 2 * i + column
+                if column == 1 and self.tied[i]:
+                    continue  # a tied ẋ_i is no variable
+                col = columns[i, column]
                 first = 0 if i == 0 else starts[i] + 1  # a boundary sample is its earlier segment's end
                 for k in range(len(self.data.streams)):
                     rows = slice(k * n + first, k * n + ends[i] + 1)
@@ -285,7 +354,8 @@ class ShootingProblem:
                 if i < self.segments - 1:
                     row = data_rows + 2 * i
                     own = delta[row : row + 2]  # d(end_i)/d(state_i) minus the known −1 of state_{i+1}
-                    own[column] += self.defect_weight * self.state_scale[column] / (lx, lv)[column]
+                    if not (column == 1 and self.tied[i + 1]):  # a tied ẋ_{i+1} did not move
+                        own[column] += self.defect_weight * self.state_scale[column] / (lx, lv)[column]
                     jac[row : row + 2, col] = own
                 if i > 0:
                     row = data_rows + 2 * (i - 1) + column

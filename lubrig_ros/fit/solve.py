@@ -45,6 +45,12 @@ MAX_MISFIT = 1.5
 #: The first stage (states alone) only prepares the second: a coarse tolerance, few evaluations.
 STATE_STAGE_FTOL = 1e-4
 STATE_STAGE_EVALUATIONS = 10
+#: Points of the stick-slip start scan (a power of two: a Sobol' sequence's balance) and its span
+#: in θ either side of the start (ln 1.25 for a positive parameter; ±25 % of the scale otherwise).
+SCAN_POINTS = 128
+SCAN_SPAN = math.log(1.25)
+SCAN_LINEAR_SPAN = 0.25
+SCAN_STARTS = 3
 #: Default length of a shooting segment, s.
 SEGMENT_SECONDS = 0.25
 
@@ -223,49 +229,108 @@ def fit(
     z0 = np.concatenate([theta, problem.pack(start, problem.initial_states(start))[len(parameters) :]])
     runner = Runner(problem, workers)
     try:
-        z0 = _fit_states(runner, z0, len(parameters), max_evaluations)
-        solution = least_squares(
-            runner.residuals,
-            z0,
-            jac=lambda z: csr_matrix(runner.jacobian(z)),
-            bounds=(low, high),
-            method="trf",
-            tr_solver="lsmr",
-            x_scale=1.0,
-            max_nfev=max_evaluations,
-        )
+        starts = _scan(runner, z0, low, high) if problem.slips else [z0]
+        solutions = [_local_fit(runner, z, low, high, max_evaluations) for z in starts]
+        solution = min(solutions, key=lambda s: float(s.cost))
         jac = runner.jacobian(solution.x)
     finally:
         runner.close()
     return _result(problem, parameters, start, solution, jac, workers, time.perf_counter() - started)
 
 
-def _fit_states(runner: Runner, z0: np.ndarray, count: int, max_evaluations: int) -> np.ndarray:
+def _local_fit(
+    runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray, max_evaluations: int
+) -> Any:
+    """The states' stage, then bounded least squares on everything from there (scipy's result)."""
+    z0 = _fit_states(runner, z0, max_evaluations)
+    return least_squares(
+        runner.residuals,
+        z0,
+        jac=lambda z: csr_matrix(runner.jacobian(z)),
+        bounds=(low, high),
+        method="trf",
+        tr_solver="lsmr",
+        x_scale=1.0,
+        max_nfev=max_evaluations,
+    )
+
+
+def _scan(runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray) -> list[np.ndarray]:
+    """The SCAN_STARTS best of SCAN_POINTS parameter sets around the start (stick-slip records).
+
+    On a stick-slip record the local fit cannot carry a slip far: a slip's time moves with the
+    threshold x = N μ_peak / k, the cost grows with the distance between the model's slip and the
+    data's, and its Gauss-Newton model does not see past the slip's edge (measured on case 1
+    physical, 10 s: from ζ −10 %, f0 −5 %, G +10 %, a threshold 21 % high, the local fit ends with
+    f0 −8.5 %, G −24 % and ζ near 0). So the free parameters are first scanned over θ ± SCAN_SPAN
+    (a ratio of 1.25 for a positive parameter, ±25 % of its scale for a linear one), on an
+    unscrambled Sobol' sequence of SCAN_POINTS points (deterministic), each one run of the record
+    from the data's states; the SCAN_STARTS of lowest cost (the start among the candidates) each
+    start a local fit, and the fit keeps the lowest final cost: the cost of a stick-slip record
+    also has nearby local minima in the weakly seen ζ (measured: from one start, seed 4 of the
+    test's record ended at ζ −16 % with the residual RMS 1.075 × the noise, 1.03 × at the truth).
+    """
+    from scipy.stats import qmc  # scipy.stats is slow to import and only stick-slip needs it
+
+    problem = runner.problem
+    count = len(problem.parameters)
+    spans = np.array([SCAN_SPAN if p.logarithmic else SCAN_LINEAR_SPAN for p in problem.parameters])
+    unit = qmc.Sobol(count, scramble=False).random(SCAN_POINTS)
+    points = np.clip(z0[:count] + (2.0 * unit - 1.0) * spans, low[:count], high[:count])
+    points = np.vstack([z0[:count], points])
+    tasks = []
+    for theta in points:
+        values = problem.unpack(np.concatenate([theta, z0[count:]]))[0]
+        tasks.append((values, problem.initial_states(values), 0.0))
+    costs = [
+        float(np.sum(problem.residuals_of(run, states) ** 2))
+        for run, (_, states, _) in zip(runner.map(tasks), tasks, strict=True)
+    ]
+    best = np.argsort(costs)[:SCAN_STARTS]
+    return [problem.pack(tasks[k][0], tasks[k][1]) for k in best]
+
+
+def _fit_states(runner: Runner, z0: np.ndarray, max_evaluations: int) -> np.ndarray:
     """z0 with the segment states fitted to the data at the start parameters (the first stage).
 
     States taken from the smoothed data are off where the mass slips (a fast velocity the
     smoothing flattens) and noisy where it sticks; fitted first with the parameters held, the
     segments start close to a trajectory of the start rig, and the full fit then moves the
     parameters from there instead of chasing slips with them.
+
+    The x_i of a segment that starts stuck (ShootingProblem.tied) is held: it comes from the stick
+    line through the data, precise already, and fitted at start parameters a few per cent off it
+    would move: the state would put the model's slip at the data's slip time, absorbing the
+    threshold's error, and the full fit would start from that compromise (measured on case 1
+    physical, 10 s, from ζ −10 %, f0 +5 %, G −10 %: ends 6–26 % off with those states fitted here,
+    within 1 standard error with them held).
     """
-    theta = z0[:count]
+    problem = runner.problem
+    moving = np.sort(problem.state_columns()[~problem.tied].ravel())
+    if moving.size == 0:
+        return z0
+
+    def with_states(states: np.ndarray) -> np.ndarray:
+        z = z0.copy()
+        z[moving] = states
+        return z
 
     def fun(states: np.ndarray) -> np.ndarray:
-        return runner.residuals(np.concatenate([theta, states]))
+        return runner.residuals(with_states(states))
 
     def jac(states: np.ndarray) -> csr_matrix:
-        return csr_matrix(runner.jacobian(np.concatenate([theta, states]), parameters=False)[:, count:])
+        return csr_matrix(runner.jacobian(with_states(states), parameters=False)[:, moving])
 
     solution = least_squares(
         fun,
-        z0[count:],
+        z0[moving],
         jac=jac,
         method="trf",
         tr_solver="lsmr",
         ftol=STATE_STAGE_FTOL,
         max_nfev=min(max_evaluations, STATE_STAGE_EVALUATIONS),
     )
-    return np.concatenate([theta, solution.x])
+    return with_states(solution.x)
 
 
 def _result(
@@ -289,9 +354,9 @@ def _result(
     block = cov[:count, :count]
     scale = np.where(theta_errors > 0, theta_errors, 1.0)
     correlation = block / np.outer(scale, scale)
-    initial_errors = np.sqrt(np.clip(np.diag(cov)[count : count + 2], 0.0, None)) * np.array(
-        problem.state_scale
-    )
+    first = problem.state_columns()[0]  # a tied ẋ(0) (the record starts stuck) has no error of its own
+    variances = np.array([cov[j, j] if j >= 0 else 0.0 for j in first])
+    initial_errors = np.sqrt(np.clip(variances, 0.0, None)) * np.array(problem.state_scale)
     n = problem.data.time.size
     rms = {}
     model = {}
