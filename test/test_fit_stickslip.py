@@ -8,10 +8,10 @@ lubrig_testkit.measured (scipy LSODA, no code of lubrig_ros's integrator) with t
 start rig's first slip 0.6 s late, the case the local fit alone could not bring back
 (docs/fitting.md, Stick-slip).
 
-SEED is a chosen noise draw: over seeds 1–8 every fit ended within 5 % with the residuals at the
-noise, but within 2 standard errors on only 2 of 8 (ζ lands in one of two nearby minima, 0 or
-about +2 %; docs/fitting.md has the table). The 2-SE part here guards seed 1's result, not the
-general claim, which is open.
+Over noise seeds 1–8 every fit ended within 5 % of the truth with the residuals at the noise,
+and G within 2 standard errors; ζ and f0 within 2 standard errors on only 2 of 8 (ζ lands in one
+of two nearby minima, 0 or about +2 %; docs/fitting.md has the table). The test asserts what held
+on every seed; ζ's and f0's 2-SE recovery in stick-slip is open.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from lubrig_testkit.measured import noisy_record
-from test_fit import TRUTH, assert_recovered
+from test_fit import TRUTH
 
 from lubrig_ros.core.presets import RunConfig, load_case
 from lubrig_ros.fit.data import checked
@@ -27,7 +27,7 @@ from lubrig_ros.fit.solve import fit
 
 DURATION = 10.0  # s: two slips
 START = {"damping_ratio": 0.9, "natural_frequency": 0.95, "shear_modulus": 1.1}  # × the truth
-SEED = 1
+SEED = 3  # any: every seed of 1–8 met what the first test asserts
 
 
 def stick_slip_start() -> tuple[RunConfig, RunConfig]:
@@ -42,13 +42,19 @@ def stick_slip_start() -> tuple[RunConfig, RunConfig]:
 
 
 def test_stick_slip_record_recovers_the_rig_from_an_offset_start() -> None:
-    """x and μ measured: ζ, f0 and G within 2 standard errors and 5 %, the model leaves the noise."""
+    """x and μ measured: ζ, f0 and G within 5 %, G within 2 standard errors, the model leaves the
+    noise."""
     measured, start = stick_slip_start()
     data = checked(*noisy_record(measured, TRUTH, SEED), "stick-slip")
     result = fit(data, start, list(TRUTH), workers=2)
     assert result.success, result.status
     assert result.segments < DURATION / 0.25  # the stick-slip layout: no boundary near a slip
-    assert_recovered(result, TRUTH)
+    assert result.undetermined == {}, result.undetermined
+    for name, value, error in zip(result.names, result.values, result.errors, strict=True):
+        true = TRUTH[name]
+        assert abs(value - true) <= 0.05 * abs(true), (name, value, true)
+        if name == "shear_modulus":
+            assert abs(value - true) <= 2.0 * error, (name, value, true, error)
     for name, rms in result.residual_rms.items():
         assert rms < 1.1 * result.noise[name], (name, rms, result.noise[name])
 
