@@ -29,7 +29,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from ..app import contract
+from ..app import contract, startup_trace
 from ..app.contract import DEFAULT_NAMESPACE, NodeParameter
 from ..app.diagnostics import Status
 from ..app.selection import base_config
@@ -376,6 +376,7 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
             node = make_node()
         finally:
             signal.pthread_sigmask(signal.SIG_UNBLOCK, stopping)
+        startup_trace.mark(node.get_name(), "node created")
         executor = EventsExecutor(context=node.context)
         executor.add_node(node)
         SPINNING.set()
