@@ -1,6 +1,7 @@
 """Where the start-up of `lubrig rig` goes: a timeline of one start and the CPU of each process.
 
     .venv/bin/python bench/bench_rig_startup.py [--repeat 3] [--no-recorder] [--duration 2]
+    .venv/bin/python bench/bench_rig_startup.py --repeat 3 --against ../wt-base   # A/B, alternately
 
 Runs `lubrig rig --case 1 --duration 2 --no-report` on a ROS domain of its own (the test kit's
 lease) with LUBRIG_STARTUP_TRACE=1, which makes the launcher and each node print when it reached
@@ -126,13 +127,15 @@ def _first_stamp(lines: list[tuple[float | None, str]], text: str) -> float | No
     return next((s for s, line in lines if s is not None and text in line), None)
 
 
-def one_run(duration: float, record: bool, tmp: Path, domain: int) -> None:
+def one_run(duration: float, record: bool, tmp: Path, domain: int, tree: str = "") -> float:
     from lubrig_testkit.harness import ros_env
 
     out = tmp / f"run{time.monotonic_ns()}"
     argv = [str(BIN / "lubrig"), "rig", "--case", "1", "--duration", f"{duration:g}"]
     argv += ["--run-dir", str(out), "--no-report"] + ([] if record else ["--no-recorder"])
     env = {**ros_env(domain), "LUBRIG_STARTUP_TRACE": "1"}
+    if tree:  # another checkout of lubrig_ros (e.g. the commit before) with this venv
+        env["PYTHONPATH"] = tree
     began = time.time()
     proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     watch = ProcWatch(proc.pid)
@@ -161,7 +164,10 @@ def one_run(duration: float, record: bool, tmp: Path, domain: int) -> None:
             events.append((info["start"], f"{info['name']} ({pid}): exec"))
     events.sort()
     first_band = _first_stamp(logs.get("belt_drive", []), "sending band samples") or began
-    print(f"run at {time.strftime('%H:%M:%S', time.gmtime(began))} UTC, load {os.getloadavg()[0]:.2f}")
+    print(
+        f"run at {time.strftime('%H:%M:%S', time.gmtime(began))} UTC, load {os.getloadavg()[0]:.2f}"
+        + (f", lubrig_ros from {tree}" if tree else "")
+    )
     for when, what in events:
         if when <= first_band + 0.5:
             print(f"  {when - began:6.2f} s  {what}")
@@ -175,6 +181,7 @@ def one_run(duration: float, record: bool, tmp: Path, domain: int) -> None:
     total = sum(cpu.values())
     shown = ", ".join(f"{k} {v:.2f}" for k, v in sorted(cpu.items(), key=lambda kv: -kv[1]))
     print(f"  start-up {first_band - began:.2f} s; CPU s until the first band block: {total:.2f} ({shown})")
+    return first_band - began
 
 
 def main() -> None:
@@ -184,12 +191,23 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--duration", type=float, default=2.0)
     parser.add_argument("--no-recorder", action="store_true")
+    parser.add_argument(
+        "--against",
+        metavar="TREE",
+        default="",
+        help="alternate runs with lubrig_ros from this checkout (PYTHONPATH), e.g. the commit before",
+    )
     args = parser.parse_args()
     from lubrig_testkit.harness import DomainLease
 
+    trees = ["", args.against] if args.against else [""]
+    starts: dict[str, list[float]] = {t: [] for t in trees}
     with DomainLease() as domain, tempfile.TemporaryDirectory() as tmp:
         for _ in range(args.repeat):
-            one_run(args.duration, not args.no_recorder, Path(tmp), domain)
+            for tree in trees:
+                starts[tree].append(one_run(args.duration, not args.no_recorder, Path(tmp), domain, tree))
+    for tree, values in starts.items():
+        print(f"start-up, {tree or 'this checkout'}: " + ", ".join(f"{v:.2f}" for v in values) + " s")
 
 
 if __name__ == "__main__":

@@ -52,7 +52,7 @@ from ..app.contract import (
     recorded_topics,
     validate_namespace,
 )
-from ..app.discovery import discovery_environment
+from ..app.discovery import LAUNCHED_SETTLE_S, discovery_environment
 from ..app.rig_plan import CLEAN_EXITS, READY_LINES, ParameterValue, RigPlan, rig_plan
 from ..app.rundir import prepare_output_dir
 from ..app.selection import RunSelection
@@ -272,6 +272,8 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--view-allow {args.view_allow[0]} applies with --view only")
     mode = args.mode
     plant_extra = _plant_options(args, mode)
+    # the launcher watches the graph for GRAPH_SETTLE_S itself (cli/rig_gate.py)
+    plant_extra["namespace_settle"] = LAUNCHED_SETTLE_S
     env = discovery.env
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
     # the launcher's own participant (graph check, run_complete) with the nodes' transports and

@@ -170,7 +170,8 @@ class Plant(Node):
             create_subscription(self, "measured_displacement", self._on_measured_raw, raw=True)
         # nothing runs before this namespace is known to be this rig's (another rig's plant, or a
         # publisher of the outputs, there: the node ends, exit status 2)
-        self._clear = NamespaceGuard(self, [p.topic_name for p in self.out.owned()]).clear
+        owned = [p.topic_name for p in self.out.owned()]
+        self._clear = NamespaceGuard(self, owned, values["namespace_settle"]).clear
         self._heard_awaited = False  # wall clock: the awaited subscriber's flow_progress arrived
         if self.wall_clock and self.wait_for_subscriber:
             create_subscription(self, "flow_progress", self._on_progress)
