@@ -246,6 +246,17 @@ class Analysis(Node):
             p["/diagnostics"].publish(diagnostics)
 
 
+def prepare() -> None:
+    """Before the node is built (nodes/entry.py): numba's CPU target.
+
+    The warm-up of the stability flags loads the friction law's cached kernels, which need it
+    first; done here, it is off the node's building. Imported here: the module stays numba-free.
+    """
+    from ..core import kernels
+
+    kernels.load_target()
+
+
 def main(args: list[str] | None = None) -> int:
     """Console script / ros2 run entry point."""
     return common.spin_node(Analysis, args)

@@ -18,7 +18,8 @@ launcher sends it to a node that has not stopped within its grace period, before
 wedged node leaves the evidence of where it hung.
 
 Start gate (`lubrig rig`): with LUBRIG_START_GATE=FD in its environment, the process imports
-its node module, then reads one byte from pipe FD before it builds anything: it is started while
+its node module (and runs the module's `prepare()`, if it has one: work of the node's building
+that needs no configuration), then reads one byte from pipe FD before it builds anything: it is started while
 the launcher still checks that the rig's namespace is free (cli/rig_gate.py), so its imports
 overlap that check, and it joins the ROS graph only once the check has passed. End of file
 instead of the byte (the namespace is taken): the process exits 0 without starting the node.
@@ -110,6 +111,10 @@ def _run(name: str) -> int:
     mark(name, "entry point")
     module = importlib.import_module(f"lubrig_ros.nodes.{name}")
     mark(name, "imports done")
+    prepare = getattr(module, "prepare", None)
+    if prepare is not None:  # what the node's building needs, done before a start gate opens
+        prepare()
+        mark(name, "prepared")
     if not pass_start_gate():
         return 0
     mark(name, "start gate passed")

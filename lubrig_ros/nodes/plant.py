@@ -66,6 +66,7 @@ from ..app.plant_session import (
     parameter_defaults,
     runtime_parameters,
 )
+from ..core import kernels
 from ..core.params import ParameterError
 from . import common, scheduling
 from .graph import NamespaceGuard, await_subscriber, band_source_status
@@ -463,6 +464,14 @@ class Plant(Node):
                 f"(max_lag {1e3 * session.settings.max_lag:g} ms, lag_policy "
                 f"{session.settings.lag_policy}); exit status {self.exit_status}"
             )
+
+
+def prepare() -> None:
+    """Before the node is built (nodes/entry.py): numba's CPU target.
+
+    Loading the integrator's cached kernels needs it first; done here, it is off the node's building.
+    """
+    kernels.load_target()
 
 
 def main(args: list[str] | None = None) -> int:
