@@ -182,7 +182,8 @@ class Supervisor:
 
     def start(self, name: str, argv: list[str]) -> None:
         """Start `argv` as process `name`, output to its log; it dies with the launcher."""
-        env, fds = self.env, ()
+        env = self.env
+        fds: tuple[int, ...] = ()
         if self.gate is not None and not self.gate.done:
             env, fds = self.gate.child_env(self.env), (self.gate.read,)
         with open(self.log(name), "w") as log:
