@@ -18,8 +18,9 @@ launcher sends it to a node that has not stopped within its grace period, before
 wedged node leaves the evidence of where it hung.
 
 Start gate (`lubrig rig`): with LUBRIG_START_GATE=FD in its environment, the process imports
-its node module (and runs the module's `prepare()`, if it has one: work of the node's building
-that needs no configuration), then reads one byte from pipe FD before it builds anything: it is started while
+its node module and runs the module's `prepare()`, if it has one (work of the node's start that
+needs neither its configuration nor the graph), then reads one byte from pipe FD before it builds
+anything: it is started while
 the launcher still checks that the rig's namespace is free (cli/rig_gate.py), so its imports
 overlap that check, and it joins the ROS graph only once the check has passed. End of file
 instead of the byte (the namespace is taken): the process exits 0 without starting the node.
@@ -112,7 +113,7 @@ def _run(name: str) -> int:
     module = importlib.import_module(f"lubrig_ros.nodes.{name}")
     mark(name, "imports done")
     prepare = getattr(module, "prepare", None)
-    if prepare is not None:  # what the node's building needs, done before a start gate opens
+    if prepare is not None and GATE_VARIABLE in os.environ:  # work for the wait at the gate
         prepare()
         mark(name, "prepared")
     if not pass_start_gate():
