@@ -297,6 +297,14 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
         ),
         WAIT_FOR_SUBSCRIBER,
         _p(
+            "state_subscribers",
+            "string_array",
+            (),
+            "sim, lockstep: nodes (names starting with each) that must have subscribed to "
+            "state_block before the run starts, besides wait_for_subscriber (the launchers: the "
+            "analysis, so that it has the run's first samples); empty = none",
+        ),
+        _p(
             "band_source",
             "string",
             "",

@@ -105,6 +105,7 @@ class Plant(Node):
         self.mode = values["mode"]
         self.wall_clock = self.mode not in contract.STEPPED_MODES
         self.wait_for_subscriber = values["wait_for_subscriber"]
+        self.state_subscribers = tuple(values["state_subscribers"])
         self.band_source = values["band_source"]
         self.scalar_topics = bool(values["scalar_topics"])
         self.publish_clock = bool(values["publish_clock"]) and self.mode == "sim"
@@ -264,8 +265,9 @@ class Plant(Node):
     def _heartbeat(self) -> None:
         """Stepped modes: republish flow_progress (and /clock) so that a late belt_drive sees where we are.
 
-        Until the awaited subscriber (the recorder) has subscribed to every output, the plant stays
-        silent, so belt_drive does not start and no sample is published before it is recorded.
+        Until the awaited subscriber (the recorder) has subscribed to every output, and each of
+        `state_subscribers` to state_block, the plant stays silent, so belt_drive does not start
+        and no sample is published before it is recorded (and analysed).
         Lockstep: the initial state once announced, and the newest state again while unanswered.
         """
         if not self._announced:
@@ -273,6 +275,9 @@ class Plant(Node):
                 return
             outputs = [p.topic_name for p in self.out.recorded()]
             if not common.subscribed_by(self, outputs, self.wait_for_subscriber):
+                return
+            blocks = [self.out.block.topic_name]
+            if not all(common.subscribed_by(self, blocks, n) for n in self.state_subscribers):
                 return
             self._announced = True
             self.get_logger().info(f"{self.mode}: flow_progress as {self.participant}")
