@@ -247,14 +247,18 @@ class Analysis(Node):
 
 
 def prepare() -> None:
-    """Before the node is built (nodes/entry.py): numba's CPU target.
+    """Before the node is built (nodes/entry.py): the session's warm-up, on the default run.
 
-    The warm-up of the stability flags loads the friction law's cached kernels, which need it
-    first; done here, it is off the node's building. Imported here: the module stays numba-free.
+    It loads numba's CPU target, the default friction law's cached kernels and what the first
+    update imports (AnalysisSession.warm_up); the node's own warm-up on its run's configuration
+    then finds them loaded (a run of another law loads that law's kernels). Imported here: the
+    module stays numba-free.
     """
+    from ..app.selection import RunSelection
     from ..core import kernels
 
     kernels.load_target()
+    AnalysisSession.warm_up(RunSelection().resolve())
 
 
 def main(args: list[str] | None = None) -> int:
