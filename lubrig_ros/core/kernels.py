@@ -444,7 +444,6 @@ def _clone(function: Any, tag: str, bound: dict[str, Any], files: tuple[str, ...
     return copy
 
 
-@functools.cache
 def load_target() -> None:
     """Load numba's CPU target now (its registries: about 0.4 s of CPU, numba's BLAS check too).
 
@@ -456,6 +455,7 @@ def load_target() -> None:
     cpu_target.target_context.refresh()
 
 
+@functools.cache
 def specialize(kernel: Any) -> tuple[Any, Any]:
     """(stepper, evaluator) compiled for one law kernel, inlined, cached by both files.
 
