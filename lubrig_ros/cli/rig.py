@@ -332,6 +332,9 @@ def run(args: argparse.Namespace) -> int:
         if CTRL_C.is_set():
             print("lubrig rig: interrupted, stopping the nodes", file=sys.stderr)
         _stop(sup)
+        if not staged.placed:  # ended before the gate opened: nothing of the run is left
+            gate.shut()
+            staged.discard()
     if not staged.placed:  # interrupted during the namespace check: nothing was started
         return 130
     return _finish(sup, plan, args, bag, wall, failure)
