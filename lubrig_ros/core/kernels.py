@@ -444,17 +444,6 @@ def _clone(function: Any, tag: str, bound: dict[str, Any], files: tuple[str, ...
     return copy
 
 
-def load_target() -> None:
-    """Load numba's CPU target now (its registries: about 0.4 s of CPU, numba's BLAS check too).
-
-    Loading the first cached kernel of a process does it otherwise. A node calls this before it
-    is built (nodes/entry.py: `prepare`), while `lubrig rig`'s start gate may still hold it.
-    """
-    from numba.core.registry import cpu_target
-
-    cpu_target.target_context.refresh()
-
-
 @functools.cache
 def specialize(kernel: Any) -> tuple[Any, Any]:
     """(stepper, evaluator) compiled for one law kernel, inlined, cached by both files.

@@ -255,9 +255,8 @@ def prepare() -> None:
     module stays numba-free.
     """
     from ..app.selection import RunSelection
-    from ..core import kernels
 
-    kernels.load_target()
+    common.load_numba_target()
     AnalysisSession.warm_up(RunSelection().resolve())
 
 

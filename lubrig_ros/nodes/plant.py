@@ -66,7 +66,6 @@ from ..app.plant_session import (
     parameter_defaults,
     runtime_parameters,
 )
-from ..core import kernels
 from ..core.params import ParameterError
 from . import common, scheduling
 from .graph import NamespaceGuard, await_subscriber, band_source_status
@@ -476,7 +475,7 @@ def prepare() -> None:
 
     Loading the integrator's cached kernels needs it first; done here, it is off the node's building.
     """
-    kernels.load_target()
+    common.load_numba_target()
 
 
 def main(args: list[str] | None = None) -> int:
