@@ -3,7 +3,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: setup ament-index run test test-fast lint typecheck bench bench-setup
+.PHONY: setup ament-index bytecode run test test-fast lint typecheck bench bench-setup
 
 $(STAMP): requirements.txt setup.py test/support/pyproject.toml
 	python3 -m venv $(VENV)
@@ -57,7 +57,14 @@ $(CLIENT_STAMP): $(CLIENT_DIR)/package.json $(CLIENT_DIR)/package-lock.json
 ament-index: $(STAMP)
 	$(PY) -m lubrig_ros.app.processes.ament_install --prefix $(VENV) --source .
 
-setup: $(STAMP) $(IFACE_STAMP) $(CLIENT_STAMP) ament-index
+# lubrig_ros's bytecode, written once here: an editable install compiles nothing, and where
+# PYTHONDONTWRITEBYTECODE is set (these machines) every node process of a rig would otherwise
+# compile the modules it imports at each start (docs/benchmarks.md, start-up). Only what is out of
+# date is compiled again.
+bytecode: $(STAMP)
+	$(PY) -m compileall -q lubrig_ros
+
+setup: $(STAMP) $(IFACE_STAMP) $(CLIENT_STAMP) ament-index bytecode
 
 # The main job: the node suite (belt_drive, plant, analysis, recorder) on study case 1 in simulated
 # time, recorded to runs/latest/bag, then the report; the last line printed is the report's path.

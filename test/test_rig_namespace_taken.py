@@ -94,6 +94,8 @@ def test_a_second_rig_in_the_same_namespace_is_refused(ros_env, tmp_path):
     assert "/lubrig/plant" in lines[0], lines  # that rig's nodes named
     assert "--namespace /lubrig_2" in lines[0], lines  # what would be valid
     assert not second_dir.exists()  # refused before anything was written or started
+    # while it looked, its run folder was staged beside (cli/rig_gate.py): not left behind either
+    assert not list(tmp_path.glob(".lubrig-rig-starting-*"))
 
     assert first.returncode == 0, out + err
     result = verify_bag(first_dir / "bag")

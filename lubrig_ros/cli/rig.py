@@ -52,8 +52,9 @@ from ..app.interface.contract import (
     recorded_topics,
     validate_namespace,
 )
-from ..app.processes.discovery import discovery_environment
+from ..app.processes.discovery import LAUNCHED_SETTLE_S, discovery_environment
 from ..app.processes.rig_plan import CLEAN_EXITS, READY_LINES, ParameterValue, RigPlan, rig_plan
+from ..app.processes.startup_trace import mark
 from ..app.rundir import prepare_output_dir
 from ..app.selection import RunSelection
 from ..app.view.access import WAYS
@@ -62,7 +63,8 @@ from ..core.presets import RunConfig, config_dir
 from ..nodes.view import DEFAULT_PORT, HIGHEST_PORT, tcp_port
 from .main import CommandError
 from .progress import Progress
-from .rig_ros import STALL_GIVE_UP_S, namespace_taken, wait_complete
+from .rig_gate import StagedRunDir, StartGate, admit_run
+from .rig_ros import STALL_GIVE_UP_S, wait_complete
 from .rig_supervisor import CTRL_C, GRACE_S, Exit, RigProcessError, Supervisor, catch_ctrl_c, stop_all
 
 __all__ = [  # what tests and launch/rig.launch.py take from here
@@ -157,17 +159,6 @@ def recorder_command(
         return [*argv, "--use-sim-time", "--workers", str(SIM_RECORDER_WORKERS)]
     # wall clock: state_block holds every sample; the per-sample streams would be written twice
     return [*argv, "--progress-heartbeat-only", "--topics", *recorded_topics(mode)]
-
-
-def _set_aside(bag_dir: Path) -> None:
-    """Keep the previous recording of this DIR as bag.previous (the recorder needs a new path)."""
-    if not bag_dir.exists():
-        return
-    previous = bag_dir.with_name(bag_dir.name + ".previous")
-    if previous.exists():
-        shutil.rmtree(previous)
-    bag_dir.rename(previous)
-    print(f"lubrig rig: previous bag moved to {previous}")
 
 
 def _plant_options(args: argparse.Namespace, mode: str) -> dict[str, ParameterValue]:
@@ -281,33 +272,36 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--view-allow {args.view_allow[0]} applies with --view only")
     mode = args.mode
     plant_extra = _plant_options(args, mode)
+    # the launcher watches the graph for GRAPH_SETTLE_S itself (cli/rig_gate.py)
+    plant_extra["namespace_settle"] = LAUNCHED_SETTLE_S
     env = discovery.env
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
     # the launcher's own participant (graph check, run_complete) with the nodes' transports and
     # discovery range: with rclpy's defaults it found the latched run_complete seconds late
     os.environ.update({k: v for k, v in env.items() if os.environ.get(k) != v})
-    taken = namespace_taken(namespace)  # before anything is written or started
-    if taken:
-        raise CommandError(taken)
+    # run_config.yaml and the logs are staged until the namespace check, which runs while the
+    # first processes import (cli/rig_gate.py), has passed
     bag = prepare_output_dir(Path(args.run_dir), args.force, "--run-dir").resolve()
-    bag.mkdir(parents=True, exist_ok=True)
-    logs = bag / "logs"
-    logs.mkdir(exist_ok=True)
-    run_config = write_run_config(config, bag)
-    with_recorder = not args.no_recorder
-    plan = rig_plan(
-        run_config,
-        config_dir() / "nodes.yaml",
-        mode,
-        namespace,
-        recorded=with_recorder,
-        recorder_reports_progress=not with_recorder or recorder_reports_progress(),
-        publish_clock=not getattr(args, "no_clock", False),
-        plant_extra=plant_extra,
-    )
-    if with_recorder:
-        _set_aside(bag / "bag")
-    sup = Supervisor(logs, env)
+    staged = StagedRunDir(bag)
+    try:
+        write_run_config(config, staged.path)
+        with_recorder = not args.no_recorder
+        plan = rig_plan(
+            bag / RUN_CONFIG_FILE,
+            config_dir() / "nodes.yaml",
+            mode,
+            namespace,
+            recorded=with_recorder,
+            recorder_reports_progress=not with_recorder or recorder_reports_progress(),
+            publish_clock=not getattr(args, "no_clock", False),
+            plant_extra=plant_extra,
+        )
+    except BaseException:
+        staged.discard()
+        raise
+    gate = StartGate()
+    admit = functools.partial(admit_run, namespace, gate, staged, with_recorder)
+    sup = Supervisor(staged.path / "logs", env, gate, admit)
     catch_ctrl_c()
     with contextlib.suppress(ValueError, RuntimeError):  # stacks on SIGUSR1, as the nodes do
         faulthandler.register(signal.SIGUSR1, all_threads=True)
@@ -315,6 +309,7 @@ def run(args: argparse.Namespace) -> int:
     wall = math.nan  # interrupted: no run time to report, exit status 130
     try:
         _start(sup, plan, args, bag)
+        mark("launcher", "start lines seen")
         domain = env.get("ROS_DOMAIN_ID", "0")
         print(
             f"lubrig rig: {config.name} ({mode}, {config.duration:g} s) on ROS_DOMAIN_ID {domain}, "
@@ -337,6 +332,11 @@ def run(args: argparse.Namespace) -> int:
         if CTRL_C.is_set():
             print("lubrig rig: interrupted, stopping the nodes", file=sys.stderr)
         _stop(sup)
+        if not staged.placed:  # ended before the gate opened: nothing of the run is left
+            gate.shut()
+            staged.discard()
+    if not staged.placed:  # interrupted during the namespace check: nothing was started
+        return 130
     return _finish(sup, plan, args, bag, wall, failure)
 
 

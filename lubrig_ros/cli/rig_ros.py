@@ -1,6 +1,6 @@
 """`lubrig rig`'s own ROS participant: is the namespace free (before the nodes start), is the run over.
 
-`namespace_taken` looks at the graph for GRAPH_SETTLE_S (app/processes/discovery.py): another rig's nodes
+`namespace_taken` looks at the graph after GRAPH_SETTLE_S (app/processes/discovery.py): another rig's nodes
 in the namespace (plant, belt_drive, analysis, the recorder's), or any publisher of a topic in
 it, make the namespace taken, and `lubrig rig` refuses to start there (two rigs in one namespace
 would both run, each bag holding both rigs' samples). The plant checks again at its own start-up
@@ -61,16 +61,15 @@ def _occupants(node: Any, namespace: str) -> list[str]:
 def namespace_taken(namespace: str, settle: float = GRAPH_SETTLE_S) -> str:
     """One line naming the rig that holds `namespace` on this domain, or "" (after `settle` s).
 
-    The graph is watched for `settle` s of discovery (a rig seen early is named with all of its
-    nodes discovered by then).
+    The graph is read once `settle` s of discovery have passed (rmw's discovery keeps the graph
+    up to date meanwhile; a rig seen then is named with all of its nodes discovered by then).
+    One look, not a poll: the node processes import beside this wait (cli/rig_gate.py), and CPU
+    spent here is taken from them.
     """
     context, node = _launcher_node()
     try:
-        end = time.monotonic() + settle
+        time.sleep(settle)
         held = _occupants(node, namespace)
-        while time.monotonic() < end:
-            time.sleep(0.1)
-            held = _occupants(node, namespace)
         if not held:
             return ""
         return (

@@ -21,9 +21,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..app.processes.lifetime import die_with_parent
 from ..app.processes.rig_plan import CLEAN_EXITS, READY_LINES
+
+if TYPE_CHECKING:
+    from .rig_gate import StartGate
 
 #: Set by the launcher's SIGINT handler (catch_ctrl_c) before it raises KeyboardInterrupt.
 CTRL_C = threading.Event()
@@ -154,8 +158,20 @@ def stop_all(
 class Supervisor:
     """The rig's processes, each with its log in `logs`/<name>.log (see module docstring)."""
 
-    def __init__(self, logs: Path, env: dict[str, str]) -> None:
+    def __init__(
+        self,
+        logs: Path,
+        env: dict[str, str],
+        gate: StartGate | None = None,
+        admit: Callable[[], Path] | None = None,
+    ) -> None:
+        """Processes in `logs`, with `env`; a start gate if `gate` and `admit` are given.
+
+        Processes started before the first wait are held at `gate` (cli/rig_gate.py); that wait
+        calls `admit` first, which opens it (or raises) and returns where the logs are from then on.
+        """
         self.logs, self.env = logs, env
+        self.gate, self.admit = gate, admit
         self.procs: dict[str, subprocess.Popen] = {}
         self.exits: dict[str, Exit] = {}
         self.phase = "start-up"
@@ -166,10 +182,25 @@ class Supervisor:
 
     def start(self, name: str, argv: list[str]) -> None:
         """Start `argv` as process `name`, output to its log; it dies with the launcher."""
+        env = self.env
+        fds: tuple[int, ...] = ()
+        if self.gate is not None and not self.gate.done:
+            env, fds = self.gate.child_env(self.env), (self.gate.read,)
         with open(self.log(name), "w") as log:
             self.procs[name] = subprocess.Popen(
-                argv, env=self.env, stdout=log, stderr=subprocess.STDOUT, preexec_fn=_die_with_launcher
+                argv,
+                env=env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                preexec_fn=_die_with_launcher,
+                pass_fds=fds,
             )
+
+    def open_gate(self) -> None:
+        """Admit the held processes (once; see __init__)."""
+        if self.admit is not None:
+            admit, self.admit = self.admit, None
+            self.logs = admit()
 
     def ended(self) -> list[Exit]:
         """Processes that have ended (first seen ending first); each is recorded with its phase."""
@@ -199,6 +230,7 @@ class Supervisor:
         RigProcessError naming the process that ended meanwhile (whichever it is), or `name` if its
         line has not come within `limit` s.
         """
+        self.open_gate()
         key = "plant" if name == "plant_loop" else name
         end = time.monotonic() + limit
         while READY_LINES[name] not in self.log(key).read_text(errors="replace"):

@@ -268,6 +268,20 @@ class Analysis(Node):
             p["/diagnostics"].publish(diagnostics)
 
 
+def prepare() -> None:
+    """Before the node is built (nodes/entry.py): the session's warm-up, on the default run.
+
+    It loads numba's CPU target, the default friction law's cached kernels and what the first
+    update imports (AnalysisSession.warm_up); the node's own warm-up on its run's configuration
+    then finds them loaded (a run of another law loads that law's kernels). Imported here: the
+    module stays numba-free.
+    """
+    from ..app.selection import RunSelection
+
+    common.load_numba_target()
+    AnalysisSession.warm_up(RunSelection().resolve())
+
+
 def main(args: list[str] | None = None) -> int:
     """Console script / ros2 run entry point."""
     return common.spin_node(Analysis, args)

@@ -32,6 +32,7 @@ from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
 from ..app.belt_session import AheadSchedule, BandBlock, ProfileState, SimSchedule
 from ..app.flow import FlowGate, flow_window_problem, qualified_name
 from ..app.interface.contract import BELT_DRIVE_PARAMETERS, profile_parameter
+from ..app.processes.discovery import fully_qualified
 from ..core.params import ParameterError
 from ..core.presets import RunConfig
 from ..core.profiles import BandProfile, profile_kinds, profile_to_dict
@@ -84,7 +85,9 @@ class BeltDrive(Node):
             required = tuple(qualified_name(namespace, n) for n in values["required_consumers"])
             gate = FlowGate(values["flow_window"], plant, required)
             self.sim = SimSchedule(gate, self.sample_rate, values["duration"], values["block_length"])
-            self.seen_at: float | None = None
+            self.plant = plant
+            self.seen_at: float | None = None  # the plant's band subscription first discovered
+            self._reported = False  # the plant's first flow_progress (its segment) logged
             self.started = False
             self._waiting_logged = 0.0
             create_subscription(self, "flow_progress", self._on_progress)
@@ -175,8 +178,8 @@ class BeltDrive(Node):
         assert self.sim is not None
         if not self.sim.progress(str(msg.participant), int(msg.segment), int(msg.samples), _stamp_ns(msg)):
             return
-        if self.seen_at is None and self.sim.gate.segment is not None:
-            self.seen_at = time.monotonic()
+        if not self._reported and self.sim.gate.segment is not None:
+            self._reported = True
             self.get_logger().info(f"plant seen: segment {self.sim.gate.segment}")
         self._pump()
 
@@ -184,7 +187,7 @@ class BeltDrive(Node):
         """Sim flow control: publish band blocks up to the gate's limit, never beyond N."""
         sim = self.sim
         assert sim is not None
-        if sim.gate.segment is None or self.seen_at is None:
+        if not self._plant_discovered() or sim.gate.segment is None:
             return
         restarted = sim.restarted()
         if restarted is not None:
@@ -195,6 +198,18 @@ class BeltDrive(Node):
             self._publish(block)
         if sim.done:
             self.get_logger().info(f"sim: all {sim.total} band samples of segment {sim.segment} published")
+
+    def _plant_discovered(self) -> bool:
+        """The plant's subscription to the band blocks is on the graph; `seen_at`: since when.
+
+        The start delay counts from here, not from the plant's first flow_progress: a plant
+        announces itself only after its own start-up check, which the delay then overlaps.
+        """
+        if self.seen_at is None:
+            infos = self.get_subscriptions_info_by_topic(self.publisher.topic_name)
+            if any(fully_qualified(i.node_namespace, i.node_name) == self.plant for i in infos):
+                self.seen_at = time.monotonic()
+        return self.seen_at is not None
 
     def _may_start(self) -> bool:
         """Plant and required consumers reported, discovery time passed, the plant subscribed."""

@@ -32,6 +32,7 @@ from rclpy.parameter import Parameter
 from ..app.interface import contract
 from ..app.interface.contract import DEFAULT_NAMESPACE, NodeParameter
 from ..app.interface.diagnostics import Status
+from ..app.processes import startup_trace
 from ..app.selection import base_config
 from ..app.timing import DeadlineLoop
 from ..core.params import ParameterError
@@ -354,6 +355,18 @@ def _ignore_sigint() -> None:
             return
 
 
+def load_numba_target() -> None:
+    """Load numba's CPU target now (its registries: about 0.4 s of CPU, numba's BLAS check too).
+
+    Loading the first cached kernel of a process does it otherwise. A node calls this in its
+    `prepare` (nodes/entry.py), while `lubrig rig`'s start gate holds it; numba is imported here,
+    not with this module (belt_drive and the recorder need none).
+    """
+    from numba.core.registry import cpu_target
+
+    cpu_target.target_context.refresh()
+
+
 def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     """rclpy.init, build the node, spin until SIGINT/SIGTERM, destroy, shut down; exit status.
 
@@ -376,6 +389,7 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
             node = make_node()
         finally:
             signal.pthread_sigmask(signal.SIG_UNBLOCK, stopping)
+        startup_trace.mark(node.get_name(), "node created")
         executor = EventsExecutor(context=node.context)
         executor.add_node(node)
         SPINNING.set()

@@ -17,6 +17,14 @@ SIGUSR1 writes the Python stack of every thread to stderr (the node log; faultha
 launcher sends it to a node that has not stopped within its grace period, before SIGTERM, so a
 wedged node leaves the evidence of where it hung.
 
+Start gate (`lubrig rig`): with LUBRIG_START_GATE=FD in its environment, the process imports
+its node module and runs the module's `prepare()`, if it has one (work of the node's start that
+needs neither its configuration nor the graph), then reads one byte from pipe FD before it builds
+anything: it is started while
+the launcher still checks that the rig's namespace is free (cli/rig_gate.py), so its imports
+overlap that check, and it joins the ROS graph only once the check has passed. End of file
+instead of the byte (the namespace is taken): the process exits 0 without starting the node.
+
 `-h` / `--help` before any ROS arguments prints the node's usage and parameters (from the
 contract, without importing rclpy) and exits 0 without starting the node.
 """
@@ -29,6 +37,8 @@ import os
 import signal
 import sys
 from types import FrameType
+
+from ..app.processes.startup_trace import mark
 
 #: What each rig node does, for --help (the recorder, replay and view have argparse of their own).
 NODE_SUMMARIES = {
@@ -69,6 +79,21 @@ def single_threaded_numerics() -> None:
         os.environ.setdefault(key, value)
 
 
+#: Environment variable naming the read end of the start gate's pipe (see the module docstring).
+GATE_VARIABLE = "LUBRIG_START_GATE"
+
+
+def pass_start_gate() -> bool:
+    """Wait at the start gate if there is one; False if the launcher closed it (do not start)."""
+    fd = os.environ.pop(GATE_VARIABLE, None)
+    if fd is None:
+        return True
+    try:
+        return os.read(int(fd), 1) == b"1"
+    finally:
+        os.close(int(fd))
+
+
 def _die_of_sigint(_signum: int, _frame: FrameType | None) -> None:
     """SIGINT before the node is set up: end with the default action (exit status -2)."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
@@ -84,7 +109,16 @@ def _run(name: str) -> int:
     signal.signal(signal.SIGINT, _die_of_sigint)
     faulthandler.register(signal.SIGUSR1, all_threads=True)
     single_threaded_numerics()
+    mark(name, "entry point")
     module = importlib.import_module(f"lubrig_ros.nodes.{name}")
+    mark(name, "imports done")
+    prepare = getattr(module, "prepare", None)
+    if prepare is not None and GATE_VARIABLE in os.environ:  # work for the wait at the gate
+        prepare()
+        mark(name, "prepared")
+    if not pass_start_gate():
+        return 0
+    mark(name, "start gate passed")
     # imported: a Python handler again, which rclpy's signal handling chains to (a SIGINT to a
     # running node is a clean stop, exit status 0: common.interrupt says how)
     from .common import interrupt

@@ -105,6 +105,7 @@ class Plant(Node):
         self.mode = values["mode"]
         self.wall_clock = self.mode not in contract.STEPPED_MODES
         self.wait_for_subscriber = values["wait_for_subscriber"]
+        self.state_subscribers = tuple(values["state_subscribers"])
         self.band_source = values["band_source"]
         self.scalar_topics = bool(values["scalar_topics"])
         self.publish_clock = bool(values["publish_clock"]) and self.mode == "sim"
@@ -171,7 +172,8 @@ class Plant(Node):
             create_subscription(self, "measured_displacement", self._on_measured_raw, raw=True)
         # nothing runs before this namespace is known to be this rig's (another rig's plant, or a
         # publisher of the outputs, there: the node ends, exit status 2)
-        self._clear = NamespaceGuard(self, [p.topic_name for p in self.out.owned()]).clear
+        owned = [p.topic_name for p in self.out.owned()]
+        self._clear = NamespaceGuard(self, owned, values["namespace_settle"]).clear
         self._heard_awaited = False  # wall clock: the awaited subscriber's flow_progress arrived
         if self.wall_clock and self.wait_for_subscriber:
             create_subscription(self, "flow_progress", self._on_progress)
@@ -263,8 +265,9 @@ class Plant(Node):
     def _heartbeat(self) -> None:
         """Stepped modes: republish flow_progress (and /clock) so that a late belt_drive sees where we are.
 
-        Until the awaited subscriber (the recorder) has subscribed to every output, the plant stays
-        silent, so belt_drive does not start and no sample is published before it is recorded.
+        Until the awaited subscriber (the recorder) has subscribed to every output, and each of
+        `state_subscribers` to state_block, the plant stays silent, so belt_drive does not start
+        and no sample is published before it is recorded (and analysed).
         Lockstep: the initial state once announced, and the newest state again while unanswered.
         """
         if not self._announced:
@@ -272,6 +275,9 @@ class Plant(Node):
                 return
             outputs = [p.topic_name for p in self.out.recorded()]
             if not common.subscribed_by(self, outputs, self.wait_for_subscriber):
+                return
+            blocks = [self.out.block.topic_name]
+            if not all(common.subscribed_by(self, blocks, n) for n in self.state_subscribers):
                 return
             self._announced = True
             self.get_logger().info(f"{self.mode}: flow_progress as {self.participant}")
@@ -463,6 +469,14 @@ class Plant(Node):
                 f"(max_lag {1e3 * session.settings.max_lag:g} ms, lag_policy "
                 f"{session.settings.lag_policy}); exit status {self.exit_status}"
             )
+
+
+def prepare() -> None:
+    """Before the node is built (nodes/entry.py): numba's CPU target.
+
+    Loading the integrator's cached kernels needs it first; done here, it is off the node's building.
+    """
+    common.load_numba_target()
 
 
 def main(args: list[str] | None = None) -> int:

@@ -47,6 +47,7 @@ from lubrig_ros.app.interface.contract import (
     resolve,
 )
 from lubrig_ros.app.interface.contract import select_topics as _select_topics
+from lubrig_ros.app.processes.startup_trace import mark
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.recording import RecordingSession
 from lubrig_ros.bag.writer import BagWriter
@@ -328,6 +329,7 @@ def _record(
     status = 0
     try:
         if started:
+            mark("recorder", "recording")
             print(
                 f"recorder: recording {len(recorder.session.streams)} topics with "
                 f"{len(recorder.pool.procs)} workers to {output}",
@@ -374,6 +376,15 @@ def _verdict(recorder: Recorder, output: Path) -> int:
     for line in problems:
         recorder.error(f"incomplete recording: {line}")
     return 1 if problems else 0
+
+
+def prepare() -> None:
+    """While `lubrig rig`'s start gate holds the process (nodes/entry.py): the fork server.
+
+    It imports rclpy and the workers' modules (about 0.5 s of CPU) and joins no graph; `run`
+    finds it running. It ends with this process, also when the gate stays shut.
+    """
+    start_fork_server()
 
 
 def main(argv: Sequence[str] | None = None) -> int:

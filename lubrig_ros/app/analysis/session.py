@@ -146,10 +146,10 @@ class AnalysisSession:
             analysis_every=max(1, s.window // 8),
             rig=config.rig,
         )
-        self._warm_up(config)
+        self.warm_up(config)
 
     @staticmethod
-    def _warm_up(config: RunConfig) -> None:
+    def warm_up(config: RunConfig) -> None:
         """Load here what the first update needs: the friction law's compiled module and scipy.optimize.
 
         Otherwise they are imported inside the node's first update (a timer callback), where a

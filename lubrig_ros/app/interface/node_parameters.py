@@ -15,6 +15,7 @@ from ...core import schema
 from ...core.friction_laws import DEFAULT_LAW, law_parameters
 from ...core.params import CONVENTION_CHOICES, CONVENTIONS
 from ...core.presets import CASE_NUMBERS
+from ..processes.discovery import GRAPH_SETTLE_S, LAUNCHED_SETTLE_S
 from .parameter_types import NodeParameter as NodeParameter
 from .parameter_types import ParameterType as ParameterType
 from .parameter_types import field_parameter as _field
@@ -295,12 +296,31 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
         ),
         WAIT_FOR_SUBSCRIBER,
         _p(
+            "state_subscribers",
+            "string_array",
+            (),
+            "sim, lockstep: nodes (names starting with each) that must have subscribed to "
+            "state_block before the run starts, besides wait_for_subscriber (the launchers: the "
+            "analysis, so that it has the run's first samples); empty = none",
+        ),
+        _p(
             "band_source",
             "string",
             "",
             "the declared band source: node name (in the plant's namespace) or fully qualified name "
             "of the one publisher of band input (the launchers: belt_drive); any other publisher "
             "is reported (band sources WARN, naming it); empty: any one publisher",
+        ),
+        _p(
+            "namespace_settle",
+            "double",
+            GRAPH_SETTLE_S,
+            "discovery time the start-up check watches the graph for another rig in the "
+            "namespace before the run may start; `lubrig rig`, which has watched it itself just "
+            f"before, gives {LAUNCHED_SETTLE_S:g} s",
+            unit="s",
+            low=0.0,
+            high=MAX_PERIOD_S,
         ),
         REALTIME_PRIORITY,
         _p(
@@ -396,7 +416,8 @@ BELT_DRIVE_PARAMETERS: tuple[NodeParameter, ...] = (
         "start_delay",
         "double",
         0.5,
-        "wall time to wait once the plant is seen (discovery)",
+        "sim: wall time to wait once the plant's subscription to the band blocks is discovered, "
+        "for the discovery of the other subscribers",
         unit="s",
         low=0.0,
         high=60.0,

@@ -15,6 +15,8 @@ What the plan decides, from the mode and whether the run is recorded:
   (`required_consumers`) when the recorder reports it;
 - the plant's declared band source is belt_drive (`band_source`): any other publisher of band
   input is reported by the plant;
+- sim: the plant holds the run until the analysis has subscribed to state_block
+  (`state_subscribers`): it has the first samples however long its start-up takes;
 - start order (`after`): the plant starts once belt_drive and the analysis have printed their
   start lines, unless the recorder holds a sim run anyway (then all start at once: their
   CPU-bound start-ups overlap). Wall clock: the plant's deadlines start with it, and the others'
@@ -124,6 +126,8 @@ def rig_plan(
     belt: dict[str, ParameterValue] = {**shared, "mode": mode}
     if clock:
         plant["publish_clock"] = True
+    if sim:  # the analysis takes every sample from the first: the run waits for its subscription
+        plant["state_subscribers"] = ["analysis"]
     if recorded:
         plant["wait_for_subscriber"] = RECORDER_NODE_PREFIX  # nothing published unrecorded
         if sim:
