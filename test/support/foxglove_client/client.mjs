@@ -22,7 +22,8 @@
 //                                           FIELD equals VALUE -> {"until": {..., sampleIndex}}
 //   {"subscribe": [NAME, ...]}            subscribes to parameter updates (printed as {"parameterUpdate"})
 //   {"untilParameter": {name, value}}      waits for an update of NAME to VALUE
-//   {"untilStatus": TEXT}                 waits for a status message that contains TEXT
+//   {"untilStatus": TEXT}                 waits for a status message that contains TEXT (one received
+//                                           since the previous untilStatus, or the start, counts)
 //   {"wait": MS} Byte arrays are summarized by their length. The server's
 // status messages and unadvertisements are printed too ({"status": ...}, {"unadvertise": [...]}).
 // A subscription the server refuses as "Unknown channel ID" while the channel is still advertised
@@ -149,7 +150,7 @@ async function runActions() {
     else if (action.publish) await publish(action.publish);
     else if (action.until) await until(action.until);
     else if (action.subscribe) client.subscribeParameterUpdates(action.subscribe);
-    else if (action.untilStatus) await new Promise((resolve) => statusUntils.push({ text: action.untilStatus, resolve }));
+    else if (action.untilStatus) await untilStatus(action.untilStatus);
     else if (action.untilParameter) {
       await new Promise((resolve) => parameterUntils.push({ ...action.untilParameter, resolve }));
       print({ untilParameter: action.untilParameter });
@@ -220,10 +221,21 @@ client.on("unadvertise", (ids) => {
   for (const id of ids) advertised.delete(id);
 });
 const statusUntils = []; // {text, resolve}
+let unmatchedStatuses = []; // messages since the last untilStatus: one may arrive during an earlier action
+function untilStatus(text) {
+  const seen = unmatchedStatuses.some((message) => message.includes(text));
+  unmatchedStatuses = [];
+  if (seen) return Promise.resolve();
+  return new Promise((resolve) => statusUntils.push({ text, resolve }));
+}
 client.on("status", (status) => {
   print({ status: { level: status.level, message: status.message } });
+  unmatchedStatuses.push(status.message || "");
   for (let i = statusUntils.length - 1; i >= 0; i--) {
-    if ((status.message || "").includes(statusUntils[i].text)) statusUntils.splice(i, 1)[0].resolve();
+    if ((status.message || "").includes(statusUntils[i].text)) {
+      statusUntils.splice(i, 1)[0].resolve();
+      unmatchedStatuses = []; // taken by that wait
+    }
   }
   const unknown = /Unknown channel ID: (\d+)/.exec(status.message || "");
   if (!unknown) return;
