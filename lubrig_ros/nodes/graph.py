@@ -18,7 +18,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 from rclpy.node import Node
@@ -108,22 +108,28 @@ def band_source_status(node: Node, topics: Iterable[str], source: str, hardware_
 
 def await_subscriber(
     node: Node,
-    publisher: Any,
+    publishers: Sequence[Any],
     prefix: str,
     stop: threading.Event,
     heard: Callable[[], bool],
     progress_wait: float,
 ) -> bool:
-    """Hold a wall-clock loop until node prefix* takes `publisher`'s topic; False if `stop` meanwhile.
+    """Hold a wall-clock loop until node prefix* takes every publisher's topic; False if `stop` meanwhile.
 
-    Its subscription in the graph and matched by this publisher (samples published before the
-    match would be lost), then its flow_progress (`heard()`: the recorder reports once its
-    subscription has matched); a consumer that reports none gets `progress_wait` s of discovery.
+    Its subscriptions in the graph and matched by these publishers (samples published before the
+    match would be lost; a recorder's topics may be spread over processes that subscribe at
+    different times), then its flow_progress (`heard()`: the recorder reports once its
+    state_block subscription has matched); a consumer that reports none gets `progress_wait` s
+    of discovery.
     """
     log = node.get_logger()
-    log.info(f"realtime: waiting for {prefix}* to subscribe to {publisher.topic_name.rsplit('/', 1)[-1]}")
-    topic = [publisher.topic_name]
-    while not (publisher.get_subscription_count() > 0 and subscribed_by(node, topic, prefix)):
+    names = [p.topic_name for p in publishers]
+    log.info(
+        f"realtime: waiting for {prefix}* to subscribe to {', '.join(n.rsplit('/', 1)[-1] for n in names)}"
+    )
+    while not (
+        all(p.get_subscription_count() > 0 for p in publishers) and subscribed_by(node, names, prefix)
+    ):
         if stop.wait(0.05):
             return False
     end = time.monotonic() + progress_wait

@@ -393,12 +393,12 @@ class Plant(Node):
         self._state_sent = time.monotonic()
 
     def _await_subscriber(self) -> bool:
-        """Wall-clock modes with wait_for_subscriber: hold the loop until that node takes state_block."""
+        """Wall-clock modes with wait_for_subscriber: hold the loop until that node takes the blocks."""
         if not self.wait_for_subscriber:
             return True
         return await_subscriber(
             self,
-            self.out.block,
+            self.out.blocks(),
             self.wait_for_subscriber,
             self._stop,
             lambda: self._heard_awaited,

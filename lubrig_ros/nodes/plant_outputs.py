@@ -60,9 +60,16 @@ class PlantOutputs:
         self._clock_msg = Clock()
         self._shadow_msg = ShadowBlock()
 
+    def blocks(self) -> list[Publisher]:
+        """The block outputs every recording holds: state_block, and shadow_block in shadow mode.
+
+        Wall-clock modes wait for the recorder on these (its per-sample streams are not recorded).
+        """
+        return [self.block] if self.shadow is None else [self.block, self.shadow]
+
     def recorded(self) -> list[Publisher]:
         """The outputs a recording must hold (stepped modes wait for the recorder on these)."""
-        outputs = [self.block, *self.scalars]  # state is for rig software, not recorded
+        outputs = [*self.blocks(), *self.scalars]  # state is for rig software, not recorded
         if self.clock is not None:
             outputs.append(self.clock)
         return outputs
