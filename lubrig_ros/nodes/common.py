@@ -421,13 +421,15 @@ def spin_node(make_node: Callable[[], Node], args: list[str] | None = None) -> i
             status = status or int(getattr(node, "exit_status", 0))
         name = node.get_name() if node is not None else "lubrig"
         with bounded_teardown(name, lambda: status):
-            if node is not None:
-                node.destroy_node()
             if executor is not None:
-                # shut down while the context lives: otherwise Executor.__del__ at exit prints an
-                # InvalidHandle traceback (its SIGINT guard condition is already destroyed)
+                # first: the executor lets go of the node's handles it holds in use, so that
+                # destroy_node destroys them itself (destroyed under the executor's release, a
+                # handle's destruction once blocked for good); and while the context lives:
+                # otherwise Executor.__del__ at exit prints an InvalidHandle traceback
                 with contextlib.suppress(Exception):
                     executor.shutdown(timeout_sec=1.0)
+            if node is not None:
+                node.destroy_node()
             rclpy.try_shutdown()
     return status
 

@@ -171,6 +171,7 @@ def _worker(
     finally:
         out.put(("data", wid, batch))
         out.put(("done", wid, None))
+        executor.shutdown(timeout_sec=1.0)  # before destroy_node, as nodes.common.spin_node
         node.destroy_node()
         rclpy.shutdown()
 

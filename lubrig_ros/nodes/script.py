@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import faulthandler
 import os
 import sys
 import threading
@@ -18,6 +19,8 @@ from collections.abc import Callable, Iterator, Sequence
 #: participant deletion has been seen to hang for good (2 of 20 short `lubrig rig` runs: the
 #: plant or the recorder blocked in Node.destroy_node until the launcher's SIGKILL).
 TEARDOWN_S = 3.0
+#: Seconds after TEARDOWN_S when faulthandler ends a teardown that also stopped the timer thread.
+BACKSTOP_S = 2.0
 
 
 @contextlib.contextmanager
@@ -27,6 +30,9 @@ def bounded_teardown(prog: str, status: Callable[[], int], seconds: float = TEAR
     The exit status is status(): the node's work is done and what it wrote is flushed. A hung
     teardown cannot be interrupted from Python (it blocks in C), so a timer thread ends the
     process; nothing the node owns is left unfinished by then (callers close files first).
+    A call that blocks while holding the GIL (rclpy's C++ executor and handles) stops that
+    thread too: BACKSTOP_S later, faulthandler's own thread, which needs no GIL, writes every
+    thread's stack to stderr and ends the process with status 1 (a teardown that hung, said so).
     """
 
     def give_up() -> None:
@@ -43,9 +49,11 @@ def bounded_teardown(prog: str, status: Callable[[], int], seconds: float = TEAR
     timer = threading.Timer(seconds, give_up)
     timer.daemon = True
     timer.start()
+    faulthandler.dump_traceback_later(seconds + BACKSTOP_S, exit=True)
     try:
         yield
     finally:
+        faulthandler.cancel_dump_traceback_later()
         timer.cancel()
 
 
