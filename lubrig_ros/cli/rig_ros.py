@@ -27,8 +27,11 @@ STALL_GIVE_UP_S = 15.0
 LAUNCHER_NODE = "lubrig_rig_launcher"
 
 
-def _launcher_node() -> tuple[Any, Any]:
+def _launcher_node(namespace: str) -> tuple[Any, Any]:
     """A context of its own (the nodes' environment is this process's) and the launcher's node.
+
+    The node is <namespace>/LAUNCHER_NODE: rigs in other namespaces on the domain each have
+    their own launcher node, not one name shared by several.
 
     Without rclpy's signal handlers: a Ctrl-C reaches the launcher's Python handler directly (a
     KeyboardInterrupt in its main thread, which stops the rig). With them installed by the graph
@@ -42,7 +45,7 @@ def _launcher_node() -> tuple[Any, Any]:
 
     context = Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    return context, Node(LAUNCHER_NODE, context=context)
+    return context, Node(LAUNCHER_NODE, namespace=namespace, context=context)
 
 
 def _occupants(node: Any, namespace: str) -> list[str]:
@@ -66,7 +69,7 @@ def namespace_taken(namespace: str, settle: float = GRAPH_SETTLE_S) -> str:
     One look, not a poll: the node processes import beside this wait (cli/rig_gate.py), and CPU
     spent here is taken from them.
     """
-    context, node = _launcher_node()
+    context, node = _launcher_node(namespace)
     try:
         time.sleep(settle)
         held = _occupants(node, namespace)
@@ -102,7 +105,7 @@ def wait_complete(
     from ..nodes.interfaces import qos_profile
 
     spec = contract.topic("run_complete").resolved(namespace)
-    context, node = _launcher_node()
+    context, node = _launcher_node(namespace)
     done = []
     node.create_subscription(
         Bool, spec.name, lambda m: done.append(True) if m.data else None, qos_profile(spec.qos)
