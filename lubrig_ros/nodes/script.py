@@ -14,12 +14,14 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 
+from ..app.processes.lifetime import ExitTimer
+
 #: Wall seconds a node's middleware teardown (destroy_node, executor and context shutdown) may
 #: take before the process ends without it. It normally takes well under 0.1 s; Fast DDS's
 #: participant deletion has been seen to hang for good (2 of 20 short `lubrig rig` runs: the
 #: plant or the recorder blocked in Node.destroy_node until the launcher's SIGKILL).
 TEARDOWN_S = 3.0
-#: Seconds after TEARDOWN_S when faulthandler ends a teardown that also stopped the timer thread.
+#: Seconds after TEARDOWN_S when a teardown that also stopped the timer thread is ended.
 BACKSTOP_S = 2.0
 
 
@@ -30,9 +32,10 @@ def bounded_teardown(prog: str, status: Callable[[], int], seconds: float = TEAR
     The exit status is status(): the node's work is done and what it wrote is flushed. A hung
     teardown cannot be interrupted from Python (it blocks in C), so a timer thread ends the
     process; nothing the node owns is left unfinished by then (callers close files first).
-    A call that blocks while holding the GIL (rclpy's C++ executor and handles) stops that
-    thread too: BACKSTOP_S later, faulthandler's own thread, which needs no GIL, writes every
-    thread's stack to stderr and ends the process with status 1 (a teardown that hung, said so).
+    A call that blocks while holding the GIL (rclpy destroying a DDS participant) stops that
+    thread too. Then faulthandler's thread writes every thread's stack to stderr after
+    `seconds` + BACKSTOP_S / 2 and an ExitTimer (app/processes/lifetime.py), which runs no
+    Python, ends the process with the same status at `seconds` + BACKSTOP_S.
     """
 
     def give_up() -> None:
@@ -49,10 +52,12 @@ def bounded_teardown(prog: str, status: Callable[[], int], seconds: float = TEAR
     timer = threading.Timer(seconds, give_up)
     timer.daemon = True
     timer.start()
-    faulthandler.dump_traceback_later(seconds + BACKSTOP_S, exit=True)
+    faulthandler.dump_traceback_later(seconds + BACKSTOP_S / 2)
+    backstop = ExitTimer(seconds + BACKSTOP_S, status())
     try:
         yield
     finally:
+        backstop.cancel()
         faulthandler.cancel_dump_traceback_later()
         timer.cancel()
 
