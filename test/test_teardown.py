@@ -31,15 +31,16 @@ BLOCKED_TEARDOWN = textwrap.dedent(
 )
 
 
+def _python(code: str) -> subprocess.CompletedProcess:
+    """`code` run by this interpreter in a process of its own, its output captured."""
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False
+    )
+
+
 def test_a_hung_teardown_ends_the_process_with_the_node_status() -> None:
     for status in (0, 3):
-        done = subprocess.run(
-            [sys.executable, "-c", BLOCKED_TEARDOWN.format(status=status)],
-            capture_output=True,
-            text=True,
-            timeout=60,
-            check=False,
-        )
+        done = _python(BLOCKED_TEARDOWN.format(status=status))
         assert done.returncode == status
         assert done.stdout == "work done\n"
         assert done.stderr.splitlines() == [
@@ -64,13 +65,7 @@ def test_a_teardown_that_blocks_holding_the_gil_still_ends_with_the_node_status(
     )
     for status in (0, 3):
         start = time.monotonic()
-        done = subprocess.run(
-            [sys.executable, "-c", code.format(status=status)],
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=False,
-        )
+        done = _python(code.format(status=status))
         assert time.monotonic() - start < 60  # not the 600 s of the blocked call
         assert done.returncode == status, done.stderr
         assert done.stdout == "work done\n"
@@ -88,9 +83,7 @@ def test_a_teardown_that_finishes_is_not_touched() -> None:
         print("exited normally", flush=True)
         """
     )
-    done = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False
-    )
+    done = _python(code)
     assert (done.returncode, done.stdout, done.stderr) == (0, "exited normally\n", "")
 
 
