@@ -9,9 +9,10 @@ start rig's first slip 0.6 s late, the case the local fit alone could not bring 
 (docs/fitting.md, Stick-slip).
 
 Over noise seeds 1–8 every fit ended within 5 % of the truth with the residuals at the noise,
-and G within 2 standard errors; ζ and f0 within 2 standard errors on only 2 of 8 (ζ lands in one
-of two nearby minima, 0 or about +2 %; docs/fitting.md has the table). The test asserts what held
-on every seed; ζ's and f0's 2-SE recovery in stick-slip is open.
+G within 2 standard errors on all eight, f0 on seven (2.45 SE on seed 7), ζ on four (about +2 %,
+2.2–3.0 SE on seeds 2, 4, 5, 8; docs/fitting.md has the table). The test asserts what held on
+every seed on seed 3, and f0 within 2 standard errors there, where μ's stick–slip jumps once
+collapsed its error 60-fold; ζ's 2-SE recovery in stick-slip is open.
 """
 
 from __future__ import annotations
@@ -24,10 +25,14 @@ from test_fit import TRUTH
 from lubrig_ros.core.presets import RunConfig, load_case
 from lubrig_ros.fit.data import checked
 from lubrig_ros.fit.solve import fit
+from lubrig_ros.fit.stick import TRANSITION_MARGIN, transition_samples
 
 DURATION = 10.0  # s: two slips
 START = {"damping_ratio": 0.9, "natural_frequency": 0.95, "shear_modulus": 1.1}  # × the truth
-SEED = 3  # any: every seed of 1–8 met what the first test asserts
+SEED = 3  # every seed of 1–8 met what the first test asserts but f0's 2 SE; seed 3 meets that too
+#: Samples where the measured μ of the seed-3 record jumps (the transition lies between k and k + 1):
+#: start and end of the slips at 2.8 s and 7.4 s.
+JUMPS = (2798, 2847, 7370, 7419)
 
 
 def stick_slip_start() -> tuple[RunConfig, RunConfig]:
@@ -42,8 +47,8 @@ def stick_slip_start() -> tuple[RunConfig, RunConfig]:
 
 
 def test_stick_slip_record_recovers_the_rig_from_an_offset_start() -> None:
-    """x and μ measured: ζ, f0 and G within 5 %, G within 2 standard errors, the model leaves the
-    noise."""
+    """x and μ measured: ζ, f0 and G within 5 %, f0 and G within 2 standard errors, the model
+    leaves the noise."""
     measured, start = stick_slip_start()
     data = checked(*noisy_record(measured, TRUTH, SEED), "stick-slip")
     result = fit(data, start, list(TRUTH), workers=2)
@@ -53,7 +58,7 @@ def test_stick_slip_record_recovers_the_rig_from_an_offset_start() -> None:
     for name, value, error in zip(result.names, result.values, result.errors, strict=True):
         true = TRUTH[name]
         assert abs(value - true) <= 0.05 * abs(true), (name, value, true)
-        if name == "shear_modulus":
+        if name in ("natural_frequency", "shear_modulus"):
             assert abs(value - true) <= 2.0 * error, (name, value, true, error)
     for name, rms in result.residual_rms.items():
         assert rms < 1.1 * result.noise[name], (name, rms, result.noise[name])
@@ -72,3 +77,16 @@ def test_stick_slip_displacement_alone_cannot_separate_stiffness_and_friction() 
     threshold = values["shear_modulus"] / values["natural_frequency"] ** 2
     true_threshold = TRUTH["shear_modulus"] / TRUTH["natural_frequency"] ** 2
     assert abs(threshold / true_threshold - 1.0) < 0.01, (threshold, true_threshold)
+
+
+def test_the_mu_samples_next_to_a_stick_slip_transition_are_left_out() -> None:
+    """The four jumps of μ (slip start and end, twice) are found in the noisy record, and only
+    they; a record that never sticks (case 1 in the paper convention) has none."""
+    measured, _ = stick_slip_start()
+    _, _, _, mu = noisy_record(measured, TRUTH, SEED)
+    sigma = 0.01 * float(max(mu) - min(mu))  # about the noise (the record's 1 % of μ's range)
+    expected = {k + d for k in JUMPS for d in range(1 - TRANSITION_MARGIN, 1 + TRANSITION_MARGIN)}
+    assert set(transition_samples(mu, sigma).nonzero()[0].tolist()) == expected
+    sliding = load_case(1).with_overrides(duration=3.0)
+    _, _, _, smooth = noisy_record(sliding, TRUTH, SEED)
+    assert not transition_samples(smooth, 0.01 * float(max(smooth) - min(smooth))).any()

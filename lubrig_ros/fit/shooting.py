@@ -11,7 +11,8 @@ at the solution the segments join into one trajectory of the fitted rig.
 
 Residuals, all in units of each stream's noise (estimated from the record, `noise_level`):
 (x_model − x_measured) / σ_x and (μ_model − μ_measured) / σ_μ at every sample of the streams
-present, then the weighted defects at the segment boundaries. The model at a boundary sample is
+present (0 for the μ samples next to a stick–slip transition, stick.transition_samples), then the
+weighted defects at the segment boundaries. The model at a boundary sample is
 the end of the segment that reaches it, not the next one's free start state: while the mass
 sticks, μ depends on v_rel ≈ 0 with a slope up to 1e11 s/m, so a start velocity off by 1e-13 m/s
 would put μ off by 0.01 at that one sample (the integration settles it within microseconds).
@@ -38,12 +39,15 @@ from ..core.integrator import IntegrationError, RigIntegrator
 from ..core.presets import RunConfig
 from .data import MeasuredData
 from .parameters import FreeParameter, with_values
-from .stick import segment_starts, stuck_positions, stuck_samples
+from .stick import segment_starts, stuck_positions, stuck_samples, transition_samples
 
 #: Weight of a continuity defect against one sample's residual (both in noise units).
 DEFECT_WEIGHT = 10.0
 #: Forward-difference step in θ and in the scaled states.
 STEP = 1e-6
+#: A data residual that moves by more than this (noise units) over one forward-difference step has
+#: crossed a discontinuity (see jacobian_from); a slope that steep is no slope of the model.
+JUMP = 0.5
 #: Residual given to a sample whose run failed (the step size collapsed): a bad step, not a crash.
 FAILED = 1e3
 
@@ -85,6 +89,7 @@ class ShootingProblem:
     defect_weight: float = DEFECT_WEIGHT
     starts: np.ndarray = field(init=False)
     stuck: np.ndarray = field(init=False)  # per sample: the measured mass sticks (stick.py)
+    left_out: np.ndarray = field(init=False)  # per sample: μ next to a stick–slip transition, unfitted
     tied: np.ndarray = field(init=False)  # per segment: starts stuck, ẋ_i = v_band / γ (not free)
     sigma: dict[str, float] = field(init=False)
     state_scale: tuple[float, float] = field(init=False)
@@ -94,6 +99,9 @@ class ShootingProblem:
         n = self.data.time.size
         self.sigma = {name: noise_level(values) for name, values in self.data.streams.items()}
         self.stuck = self._stuck()
+        mu = self.data.friction_coefficient
+        sigma_mu = self.sigma.get("friction_coefficient", 0.0)
+        self.left_out = np.zeros(n, dtype=bool) if mu is None else transition_samples(mu, sigma_mu)
         self.starts = segment_starts(n, self.segment_samples, self.stuck, self.data.sample_rate)
         self.tied = self.stuck[self.starts]
         length = self._length_scale()
@@ -278,7 +286,10 @@ class ShootingProblem:
         parts = []
         for name, measured in self.data.streams.items():
             model = run.displacement if name == "displacement" else run.friction_coefficient
-            parts.append((model - measured) / self.sigma[name])
+            residual = (model - measured) / self.sigma[name]
+            if name == "friction_coefficient":
+                residual = np.where(self.left_out, 0.0, residual)
+            parts.append(residual)
         lx, lv = self._defect_scales()
         defects = (run.ends - states[1:]) / np.array([lx, lv])
         parts.append(self.defect_weight * defects.ravel())
@@ -297,6 +308,11 @@ class ShootingProblem:
     def data_rows(self) -> int:
         """Residual rows that compare the model with measured samples."""
         return self.data.time.size * len(self.data.streams)
+
+    def fitted_rows(self) -> int:
+        """Data rows the fit uses: all but the μ samples left out next to a transition."""
+        left_out = int(np.count_nonzero(self.left_out)) if "friction_coefficient" in self.data.streams else 0
+        return self.data_rows() - left_out
 
     def jacobian_tasks(
         self, z: np.ndarray, parameters: bool = True
@@ -333,7 +349,7 @@ class ShootingProblem:
         jac = np.zeros((base.size, z.size))
         for j in range(count if parameters else 0):
             _, task_states, step = tasks[j]
-            jac[:, j] = (self.residuals_of(runs[j], task_states) - base) / step
+            jac[:, j] = self._difference(self.residuals_of(runs[j], task_states), base) / step
         starts, ends = self.starts, self.ends
         lx, lv = self._defect_scales()
         data_rows = self.data_rows()
@@ -342,7 +358,7 @@ class ShootingProblem:
         for column in range(2):
             offset = count if parameters else 0
             _, task_states, step = tasks[offset + column]
-            delta = (self.residuals_of(runs[offset + column], task_states) - base) / step
+            delta = self._difference(self.residuals_of(runs[offset + column], task_states), base) / step
             for i in range(self.segments):
                 if column == 1 and self.tied[i]:
                     continue  # a tied ẋ_i is no variable
@@ -361,6 +377,25 @@ class ShootingProblem:
                     row = data_rows + 2 * (i - 1) + column
                     jac[row, col] = -self.defect_weight * self.state_scale[column] / (lx, lv)[column]
         return jac
+
+    def _difference(self, moved: np.ndarray, base: np.ndarray) -> np.ndarray:
+        """The change moved − base, 0 for a data row that jumped by more than JUMP noise units.
+
+        μ changes by 0.16 (about 58 σ_μ at 1 % noise) within microseconds at every stick–slip
+        transition, and in smaller steps where a segment's start settles onto the stick branch. A
+        step of 1e-6 in θ that moves such an instant across a sample time changes that sample's
+        residual by the whole jump: a forward difference of 1e7 or more noise units per unit of θ,
+        which no smooth dependence gives (a slip's timing moves x by about 1e4 per unit of θ). Kept,
+        one such row outweighs the record in JᵀJ (measured: 99 % of f0's information from one μ
+        sample, its standard error collapsed 60-fold) and steers the Gauss–Newton steps. Such an
+        entry is set to 0: the sample's smooth slope either side of the jump is negligible beside
+        the record's, and the jump itself is no derivative.
+        """
+        difference = moved - base
+        rows = self.data_rows()
+        jumped = np.abs(difference[:rows]) > JUMP
+        difference[:rows][jumped] = 0.0
+        return difference
 
 
 def _worker_run(task: tuple[np.ndarray, np.ndarray, float]) -> Run:

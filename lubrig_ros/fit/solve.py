@@ -154,7 +154,7 @@ def information_matrix(problem: ShootingProblem, jac: np.ndarray) -> np.ndarray:
 def covariance(problem: ShootingProblem, information: np.ndarray, residual: np.ndarray) -> np.ndarray:
     """Covariance of z: s² (JᵀJ)⁺, s² the data residuals' mean square per degree of freedom."""
     rows = problem.data_rows()
-    dof = max(rows - information.shape[0], 1)
+    dof = max(problem.fitted_rows() - information.shape[0], 1)
     s2 = float(residual[:rows] @ residual[:rows]) / dof
     return np.asarray(s2 * np.linalg.pinv(information, rcond=1e-15, hermitian=True))
 
@@ -357,13 +357,13 @@ def _result(
     first = problem.state_columns()[0]  # a tied ẋ(0) (the record starts stuck) has no error of its own
     variances = np.array([cov[j, j] if j >= 0 else 0.0 for j in first])
     initial_errors = np.sqrt(np.clip(variances, 0.0, None)) * np.array(problem.state_scale)
-    n = problem.data.time.size
+    run = problem.run(values, states)  # the model also where μ samples are left out of the fit
     rms = {}
     model = {}
-    for k, (name, measured) in enumerate(problem.data.streams.items()):
-        r = solution.fun[k * n : (k + 1) * n] * problem.sigma[name]
-        rms[name] = float(np.sqrt(np.mean(r**2)))
-        model[name] = measured + r
+    for name, measured in problem.data.streams.items():
+        model[name] = run.displacement if name == "displacement" else run.friction_coefficient
+        fitted = ~problem.left_out if name == "friction_coefficient" else slice(None)
+        rms[name] = float(np.sqrt(np.mean((model[name] - measured)[fitted] ** 2)))
     result = FitResult(
         parameters=parameters,
         start=start,

@@ -41,6 +41,14 @@ STICK_TOLERANCE = 4.0
 MAX_SLIP_SEGMENTS = 4
 #: A stick phase shorter than this (s) is not used to place boundaries.
 MIN_STICK_S = 0.2
+#: A step of the measured μ from one sample to the next above this many σ_μ, and above
+#: TRANSITION_SHARE of μ's range, is a stick–slip transition (a 10 Hz oscillation over the whole
+#: range moves μ by 3 % of it per millisecond; case 1's transitions by 40–60 %).
+TRANSITION_JUMP = 10.0
+TRANSITION_SHARE = 0.1
+#: μ samples left out either side of a transition: the model's transition may lie this far from
+#: the data's at the solution without a left-in sample between them.
+TRANSITION_MARGIN = 3
 
 
 def stuck_samples(
@@ -61,6 +69,26 @@ def stuck_samples(
     stuck = np.zeros(n, dtype=bool)
     stuck[half : n - half] = variance <= limit
     return stuck
+
+
+def transition_samples(friction: np.ndarray, sigma: float) -> np.ndarray:
+    """Per sample, True within TRANSITION_MARGIN samples of a stick–slip transition of measured μ.
+
+    μ jumps by about 0.16 within microseconds where the mass starts or stops slipping, so the
+    residual of a sample next to a transition is a step function of the parameters: it changes
+    by the whole jump when the model's transition crosses the sample time, and not at all
+    otherwise. Left in, those samples make the cost a staircase in the parameters that move the
+    transition (a slip's end moves with ζ), whose steps of (jump / σ_μ)² / 2 (about 900 at 1 %
+    noise) pin each model transition to the data's millisecond, and a forward-difference step that
+    crosses one gives an entry out of all proportion. Left out, the transitions' times are seen
+    through the smooth samples around them.
+    """
+    step = np.abs(np.diff(friction))
+    threshold = max(TRANSITION_JUMP * sigma, TRANSITION_SHARE * float(np.ptp(friction)))
+    near = np.zeros(friction.size, dtype=bool)
+    for k in np.flatnonzero(step > threshold):  # the jump lies between samples k and k + 1
+        near[max(0, k + 1 - TRANSITION_MARGIN) : k + 1 + TRANSITION_MARGIN] = True
+    return near
 
 
 def _half_window(band: np.ndarray, sample_rate: float, gamma: float, sigma: float) -> int | None:
