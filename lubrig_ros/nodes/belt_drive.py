@@ -37,6 +37,7 @@ from ..core.params import ParameterError
 from ..core.presets import RunConfig
 from ..core.profiles import BandProfile, profile_kinds, profile_to_dict
 from . import common
+from .graph import delivers_to
 from .interfaces import create_publisher, create_subscription
 
 
@@ -221,11 +222,11 @@ class BeltDrive(Node):
             return False
         if self.seen_at is None or now - self.seen_at < self.start_delay:
             return False
-        if self.publisher.get_subscription_count() == 0:
-            self._waiting("the plant's subscription to the band blocks", now)
-            return False
-        if not common.subscribed_by(self, [self.publisher.topic_name], self.wait_for_subscriber):
-            self._waiting(f"a subscription of {self.wait_for_subscriber}* to the band blocks", now)
+        # the plant's subscription is discovered (seen_at); delivers_to: matched, and so is the
+        # awaited recorder's (a band block sent before the match would never reach it)
+        if not delivers_to(self, [self.publisher], self.wait_for_subscriber):
+            awaited = f" and {self.wait_for_subscriber}*" if self.wait_for_subscriber else ""
+            self._waiting(f"the band blocks' subscriptions of the plant{awaited} to be matched", now)
             return False
         self.started = True
         self.get_logger().info("sim: every participant reported; sending band samples")

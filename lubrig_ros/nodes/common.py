@@ -244,16 +244,6 @@ def diagnostic_status(status: Status, node: Node) -> DiagnosticStatus:
     return msg
 
 
-def subscribed_by(node: Node, topics: Iterable[str], prefix: str) -> bool:
-    """True when every topic has a discovered subscription from a node named prefix*."""
-    if not prefix:
-        return True
-    return all(
-        any(info.node_name.startswith(prefix) for info in node.get_subscriptions_info_by_topic(t))
-        for t in topics
-    )
-
-
 def doubles(values: Any) -> array.array:
     """A float64 array as the array.array('d') rclpy takes for float64[] without a per-item check."""
     out = array.array("d")

@@ -9,6 +9,8 @@ The rules are ROS-free (app/processes/discovery.py: `rig_occupants`, `extra_publ
   node ends with exit status 2. Not found: `clear` is set, and the node's run may start.
 - `band_source_status`: the "band sources" diagnostic status, WARN naming every publisher of
   band input besides the declared source (every mode; the plant's diagnostics carry it).
+- `delivers_to`: whether a sample published now reaches a named node (its subscriptions
+  discovered and matched by the publishers).
 - `await_subscriber`: hold a wall-clock loop until a named node has subscribed and reported.
 """
 
@@ -22,6 +24,7 @@ from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 from rclpy.node import Node
+from rclpy.qos import QoSCompatibility, qos_check_compatible
 
 from ..app.interface.diagnostics import Status
 from ..app.processes.discovery import (
@@ -31,7 +34,8 @@ from ..app.processes.discovery import (
     extra_publishers,
     fully_qualified,
 )
-from .common import steady_timer, subscribed_by
+from .common import steady_timer
+from .interfaces import message_type
 
 #: Exit status of a node that would run where another rig runs (a user's choice of namespace).
 EXIT_NAMESPACE_TAKEN = 2
@@ -106,6 +110,45 @@ def band_source_status(node: Node, topics: Iterable[str], source: str, hardware_
     )
 
 
+def subscribed_by(node: Node, topics: Iterable[str], prefix: str) -> bool:
+    """True when every topic has a discovered subscription from a node named prefix*."""
+    if not prefix:
+        return True
+    return all(
+        any(info.node_name.startswith(prefix) for info in node.get_subscriptions_info_by_topic(t))
+        for t in topics
+    )
+
+
+def matched_every_subscription(node: Node, publisher: Any) -> bool:
+    """True when the publisher has matched every discovered subscription it can match.
+
+    The graph and the writer learn of a subscription each on its own: a subscription can be on the
+    graph before the writer has matched it, and a sample published in between never reaches it
+    (volatile durability; a reliable writer repairs only what it sent after the match). A
+    subscription of another type, or with a QoS the publisher's cannot serve, never matches and
+    is not waited for.
+    """
+    compatible, msgtype = 0, message_type(publisher.msg_type)
+    for info in node.get_subscriptions_info_by_topic(publisher.topic_name):
+        if info.topic_type != msgtype:
+            continue
+        if qos_check_compatible(publisher.qos_profile, info.qos_profile)[0] != QoSCompatibility.ERROR:
+            compatible += 1
+    return publisher.get_subscription_count() >= compatible
+
+
+def delivers_to(node: Node, publishers: Sequence[Any], prefix: str) -> bool:
+    """True when a sample published now on every publisher reaches a node named prefix*.
+
+    Its subscription to each topic is discovered and each publisher has matched every
+    subscription discovered (`matched_every_subscription`: a count of matched readers alone
+    could be another node's). With an empty prefix: every discovered subscription matched.
+    """
+    names = [p.topic_name for p in publishers]
+    return subscribed_by(node, names, prefix) and all(matched_every_subscription(node, p) for p in publishers)
+
+
 def await_subscriber(
     node: Node,
     publishers: Sequence[Any],
@@ -127,9 +170,7 @@ def await_subscriber(
     log.info(
         f"realtime: waiting for {prefix}* to subscribe to {', '.join(n.rsplit('/', 1)[-1] for n in names)}"
     )
-    while not (
-        all(p.get_subscription_count() > 0 for p in publishers) and subscribed_by(node, names, prefix)
-    ):
+    while not delivers_to(node, publishers, prefix):
         if stop.wait(0.05):
             return False
     end = time.monotonic() + progress_wait

@@ -43,6 +43,11 @@ def message_class(msgtype: str) -> type:
         raise InputError(f"message type {msgtype!r} is not installed") from exc
 
 
+def message_type(cls: type) -> str:
+    """The "pkg/msg/Name" of an rclpy message class (message_class's inverse)."""
+    return f"{cls.__module__.split('.')[0]}/msg/{cls.__name__}"
+
+
 def create_publisher(node: Any, name: str) -> Any:
     """A publisher of the contract topic `name` (type and QoS from the contract), name resolved by rcl."""
     spec = contract.topic(name)

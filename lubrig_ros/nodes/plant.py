@@ -69,7 +69,7 @@ from ..app.plant.session import (
 )
 from ..core.params import ParameterError
 from . import common, scheduling
-from .graph import NamespaceGuard, await_subscriber, band_source_status
+from .graph import NamespaceGuard, await_subscriber, band_source_status, delivers_to
 from .interfaces import create_service, create_subscription, report_callers
 from .plant_outputs import PlantOutputs
 
@@ -273,11 +273,10 @@ class Plant(Node):
         if not self._announced:
             if not self._clear.is_set():
                 return
-            outputs = [p.topic_name for p in self.out.recorded()]
-            if not common.subscribed_by(self, outputs, self.wait_for_subscriber):
+            if not delivers_to(self, self.out.recorded(), self.wait_for_subscriber):
                 return
-            blocks = [self.out.block.topic_name]
-            if not all(common.subscribed_by(self, blocks, n) for n in self.state_subscribers):
+            blocks = [self.out.block]
+            if not all(delivers_to(self, blocks, n) for n in self.state_subscribers):
                 return
             self._announced = True
             self.get_logger().info(f"{self.mode}: flow_progress as {self.participant}")
