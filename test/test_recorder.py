@@ -136,6 +136,18 @@ def test_sigkill_of_the_recorder_alone_leaves_no_process_behind(procs, tmp_path:
     assert not alive, [(p.pid, p.name(), p.cmdline()[:4]) for p in alive]
 
 
+def test_a_required_stream_that_got_no_sample_makes_the_recording_incomplete(procs, tmp_path: Path) -> None:
+    """A stream lost whole has no gap to show: --require-samples names it, exit 1, the rest kept."""
+    extra = ("--require-samples", "state", "state_block")  # the source publishes no state_block
+    rec, bag, _cfg, published = _record(procs, tmp_path, 500, extra)
+    assert rec.stop(signal.SIGINT, timeout=60) == 1, rec.log()
+    assert "incomplete recording: /lubrig/state_block: no samples recorded" in rec.errors()
+    assert "/lubrig/state:" not in rec.errors()  # the stream that has its samples is fine
+    accounting = json.loads((bag / "accounting.json").read_text())
+    assert not accounting["complete"] and len(accounting["problems"]) == 1
+    _expect_all(bag, published)  # nothing recorded is lost
+
+
 def test_realtime_source_counts_reported_equal_the_bag(procs, tmp_path: Path) -> None:
     """A paced 1 kHz source without flow control: samples a starved recorder loses are accounted.
 
@@ -183,6 +195,14 @@ def test_unwritable_output_is_one_clear_error(procs, tmp_path: Path) -> None:
     assert res.returncode == 2 and "already exists" in res.stderr
     res = procs.run_module("lubrig_ros.nodes.recorder", "--topics", "nope")
     assert res.returncode == 2 and "'nope'" in res.stderr and "/lubrig/state" in res.stderr
+    # a required stream must be a recorded sample stream; nothing is created
+    out = tmp_path / "never"
+    argv = ("-o", str(out), "--topics", "state", "displacement", "--require-samples", "displacement")
+    res = procs.run_module("lubrig_ros.nodes.recorder", *argv)
+    lines = res.stderr.strip().splitlines()
+    assert res.returncode == 2 and len(lines) == 1, res.stderr
+    assert "--require-samples '/lubrig/displacement' is invalid" in lines[0] and "/lubrig/state" in lines[0]
+    assert not out.exists()
 
 
 def test_worker_dying_before_ready_is_one_error_line(procs, ros_env, tmp_path: Path) -> None:

@@ -36,6 +36,7 @@ from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.layout import ACCOUNTING_SIDECAR, cdr_string, typestore
 from lubrig_ros.bag.repair import repair_bag
 from lubrig_ros.bag.writer import BagWriter, has_leading_stamp, serialize_string
+from lubrig_ros.core.errors import InputError
 
 #: With use_sim_time, an unstamped message waits at most this long (receive time) for /clock.
 SIM_HOLD_NS = 300_000_000
@@ -86,6 +87,18 @@ class SimClock:
         return self.sim[max(i, 0)]
 
 
+def required_streams(specs: Sequence[Topic], names: Sequence[str]) -> tuple[str, ...]:
+    """The names (full) if each is a recorded sample stream; InputError naming one that is not."""
+    indexed = [s.name for s in specs if s.msgtype in INDEXED_TYPES]
+    for name in names:
+        if name not in indexed:
+            raise InputError(
+                f"--require-samples {name!r} is invalid: expected a recorded sample stream, one of "
+                f"{', '.join(indexed) or 'none'}"
+            )
+    return tuple(names)
+
+
 class RecordingSession:
     """Writes received messages of `specs` into a new bag at `output` (see the module docstring)."""
 
@@ -116,6 +129,9 @@ class RecordingSession:
         self.progress_topic = topics[resolve(namespace, "flow_progress")]
         self.plant_node = resolve(namespace, "plant")  # its FlowProgress announces what it published
         self.participant = ""  # this recorder's flow-control participant (set by the node)
+        #: sample streams this recording must hold samples of: one that got none is a problem
+        #: (a stream lost whole has no gap to show); full names, checked by `required_streams`
+        self.required: tuple[str, ...] = ()
         self.use_sim_time = use_sim_time
         self.run_config = run_config
         self.config_written = False
@@ -280,7 +296,13 @@ class RecordingSession:
 
     def problems(self) -> list[str]:
         """One line per problem of every stream (gap, duplicate, out of order, malformed)."""
-        lines = [line for a in self.accounts.values() for line in a.problems()]
+        accounts = self.accounts
+        lines = [
+            f"{name}: no samples recorded (the run publishes this stream)"
+            for name in self.required
+            if name not in accounts
+        ]
+        lines += [line for a in accounts.values() for line in a.problems()]
         lines += [
             f"{name}: {n} malformed messages (no sample index read)" for name, n in self.malformed.items()
         ]

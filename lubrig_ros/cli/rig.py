@@ -48,6 +48,7 @@ from ..app.interface.contract import (
     EXIT_INTEGRATION_FAILED,
     EXIT_REAL_TIME_NOT_HELD,
     RECORDER_PARTICIPANT,
+    RIG_SAMPLE_STREAMS,
     parameter,
     recorded_topics,
     validate_namespace,
@@ -154,7 +155,7 @@ def recorder_command(
     worker is a DDS participant whose start-up costs CPU on the run's critical path.
     """
     argv = [_executable("recorder"), "-o", str(bag_dir), "--config", str(run_config)]
-    argv += ["--namespace", namespace]
+    argv += ["--namespace", namespace, "--require-samples", *RIG_SAMPLE_STREAMS]
     if mode == "sim":
         return [*argv, "--use-sim-time", "--workers", str(SIM_RECORDER_WORKERS)]
     # wall clock: state_block holds every sample; the per-sample streams would be written twice

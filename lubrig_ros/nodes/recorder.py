@@ -49,7 +49,7 @@ from lubrig_ros.app.interface.contract import (
 from lubrig_ros.app.interface.contract import select_topics as _select_topics
 from lubrig_ros.app.processes.startup_trace import mark
 from lubrig_ros.bag.errors import BagError
-from lubrig_ros.bag.recording import RecordingSession
+from lubrig_ros.bag.recording import RecordingSession, required_streams
 from lubrig_ros.bag.writer import BagWriter
 from lubrig_ros.core.errors import InputError
 from lubrig_ros.nodes.recorder_workers import PoolMessage, WorkerPool, sim_time_overrides, start_fork_server
@@ -239,6 +239,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--duration", type=float, help="stop after this many seconds")
     p.add_argument(
+        "--require-samples",
+        nargs="+",
+        default=[],
+        metavar="TOPIC",
+        help="recorded sample streams (e.g. state_block band_velocity_block) that must hold samples: "
+        "one that got none makes the recording incomplete (exit status 1)",
+    )
+    p.add_argument(
         "--progress-heartbeat-only",
         dest="progress_per_block",
         action="store_false",
@@ -282,6 +290,7 @@ def run(args: argparse.Namespace) -> int:
             yaml.safe_load(run_config)
         except yaml.YAMLError as exc:
             raise InputError(f"--config {str(args.config)!r} is not valid YAML: {exc}") from exc
+    required = required_streams(specs, [resolve(args.namespace, n) for n in args.require_samples])
     output = args.output or Path(time.strftime("lubrig_%Y%m%d_%H%M%S"))
     should_stop = [False]
 
@@ -305,6 +314,7 @@ def run(args: argparse.Namespace) -> int:
         args.flush_period,
         args.flush_messages,
     )
+    recorder.session.required = required
     try:
         recorder.start_progress(args.progress_per_block)
         started = recorder.start_workers(should_stop=should_stop)

@@ -458,6 +458,11 @@ SHADOW_TOPICS: tuple[str, ...] = (
 )
 
 
+#: The sample streams every `lubrig rig` run publishes (the plant's blocks; belt_drive's band
+#: blocks, sent ahead in every mode): its recording must hold samples of each.
+RIG_SAMPLE_STREAMS: tuple[str, ...] = ("state_block", "band_velocity_block")
+
+
 def recorded_topics(mode: str) -> tuple[str, ...]:
     """Relative names of the topics `lubrig rig` records in `mode` (every documented one in sim)."""
     names = tuple(t.name for t in TOPICS)
