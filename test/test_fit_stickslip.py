@@ -1,4 +1,4 @@
-"""`lubrig_ros.fit` on a stick-slip record of the independent reference rig (issue 23).
+"""`lubrig_ros.fit` on a stick-slip record of the independent reference rig.
 
 Study case 1 in the physical convention (γ = 1): the mass sticks for about 4.5 s, then slips in
 50 ms from x = 4.0e-7 m to −2.7e-7 m (10 s: slips at 2.8 s and 7.4 s). The record comes from
@@ -8,11 +8,12 @@ lubrig_testkit.measured (scipy LSODA, no code of lubrig_ros's integrator) with t
 start rig's first slip 0.6 s late, the case the local fit alone could not bring back
 (docs/fitting.md, Stick-slip).
 
-Over noise seeds 1–8 every fit ended within 5 % of the truth with the residuals at the noise,
-G within 2 standard errors on all eight, f0 on seven (2.45 SE on seed 7), ζ on four (about +2 %,
-2.2–3.0 SE on seeds 2, 4, 5, 8; docs/fitting.md has the table). The test asserts what held on
-every seed on seed 3, and f0 within 2 standard errors there, where μ's stick–slip jumps once
-collapsed its error 60-fold; ζ's 2-SE recovery in stick-slip is open.
+Over noise seeds 1–8 every fit ended within 5 % of the truth with the residuals at the noise; with
+the covariance of the estimator computed (fit/solve.py) G was within 2 standard errors on all
+eight, f0 on all eight, ζ on six (+2.22 and +2.46 SE on seeds 2 and 4; docs/fitting.md has the
+table: ζ's spread is still about 1.5 × its reported error). The test asserts the criterion, every
+free parameter within 5 % and 2 standard errors, on seed 3, where μ's stick–slip jumps once
+collapsed f0's error 60-fold.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from lubrig_ros.fit.stick import TRANSITION_MARGIN, transition_samples
 
 DURATION = 10.0  # s: two slips
 START = {"damping_ratio": 0.9, "natural_frequency": 0.95, "shear_modulus": 1.1}  # × the truth
-SEED = 3  # every seed of 1–8 met what the first test asserts but f0's 2 SE; seed 3 meets that too
+SEED = 3  # seeds 1, 3, 5, 6, 7, 8 of 1–8 meet what the first test asserts
 #: Samples where the measured μ of the seed-3 record jumps (the transition lies between k and k + 1):
 #: start and end of the slips at 2.8 s and 7.4 s.
 JUMPS = (2798, 2847, 7370, 7419)
@@ -47,8 +48,7 @@ def stick_slip_start() -> tuple[RunConfig, RunConfig]:
 
 
 def test_stick_slip_record_recovers_the_rig_from_an_offset_start() -> None:
-    """x and μ measured: ζ, f0 and G within 5 %, f0 and G within 2 standard errors, the model
-    leaves the noise."""
+    """x and μ measured: ζ, f0 and G within 5 % and 2 standard errors, the model leaves the noise."""
     measured, start = stick_slip_start()
     data = checked(*noisy_record(measured, TRUTH, SEED), "stick-slip")
     result = fit(data, start, list(TRUTH), workers=2)
@@ -58,8 +58,7 @@ def test_stick_slip_record_recovers_the_rig_from_an_offset_start() -> None:
     for name, value, error in zip(result.names, result.values, result.errors, strict=True):
         true = TRUTH[name]
         assert abs(value - true) <= 0.05 * abs(true), (name, value, true)
-        if name in ("natural_frequency", "shear_modulus"):
-            assert abs(value - true) <= 2.0 * error, (name, value, true, error)
+        assert abs(value - true) <= 2.0 * error, (name, value, true, error)
     for name, rms in result.residual_rms.items():
         assert rms < 1.1 * result.noise[name], (name, rms, result.noise[name])
 

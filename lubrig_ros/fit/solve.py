@@ -3,12 +3,15 @@
 scipy.optimize.least_squares (trust-region reflective, bounded by the parameters' physical ranges
 from core/schema.py) minimizes the residuals of fit.shooting. At the solution:
 
-* covariance: s² (JᵀJ)⁻¹ restricted to the parameters, with J's continuity rows weighted
-  COVARIANCE_WEIGHT (the limit of a penalty that makes the segments one trajectory: the states are
-  then no extra freedom) and s² the data residuals' mean square per degree of freedom (the noise
-  estimate corrected by what the model leaves); standard errors in the parameters' units (delta
-  method through θ = ln p where the range is positive);
-* identifiability: a parameter is named as not determined by the data when its relative standard
+* covariance: that of the estimator computed, the sandwich s² A⁺ J_dᵀJ_d A⁺ with A = JᵀJ at the
+  fit's continuity weight (DEFECT_WEIGHT: the segments are joined by a penalty, not exactly, so
+  the states are some extra freedom) and J_d the data rows (only they carry noise), restricted to
+  the parameters; s² is the data residuals' mean square per degree of freedom (the noise estimate
+  corrected by what the model leaves); standard errors in the parameters' units (delta method
+  through θ = ln p where the range is positive);
+* identifiability: asked of the information with the continuity rows weighted COVARIANCE_WEIGHT
+  (the penalty's limit, the segments one trajectory). A parameter is named as not determined by
+  the data when its relative standard
   error exceeds MAX_RELATIVE_ERROR, when its correlation with another free parameter exceeds
   MAX_CORRELATION in magnitude, or when it takes part in a near-null direction of the parameters'
   information (eigenvalue of the correlation-scaled information below MIN_EIGENVALUE: a
@@ -31,7 +34,7 @@ from .data import MeasuredData
 from .parameters import FreeParameter, current_value, free_parameters
 from .shooting import DEFECT_WEIGHT, Runner, ShootingProblem
 
-#: Weight of the continuity rows when the covariance is computed (the penalty's limit).
+#: Weight of the continuity rows in the information asked about identifiability (the penalty's limit).
 COVARIANCE_WEIGHT = 1e3
 #: A correlation above this (in magnitude) names both parameters.
 MAX_CORRELATION = 0.99
@@ -151,12 +154,18 @@ def information_matrix(problem: ShootingProblem, jac: np.ndarray) -> np.ndarray:
     return np.asarray(data.T @ data + factor * (defects.T @ defects))
 
 
-def covariance(problem: ShootingProblem, information: np.ndarray, residual: np.ndarray) -> np.ndarray:
-    """Covariance of z: s² (JᵀJ)⁺, s² the data residuals' mean square per degree of freedom."""
+def covariance(problem: ShootingProblem, jac: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    """Covariance of z as computed (the fit's weights): s² A⁺ J_dᵀJ_d A⁺, A = JᵀJ (module docstring).
+
+    s² is the data residuals' mean square per degree of freedom.
+    """
     rows = problem.data_rows()
-    dof = max(problem.fitted_rows() - information.shape[0], 1)
+    data = jac[:rows]
+    outer = np.asarray(data.T @ data)
+    inverse = np.linalg.pinv(np.asarray(jac.T @ jac), rcond=1e-15, hermitian=True)
+    dof = max(problem.fitted_rows() - jac.shape[1], 1)
     s2 = float(residual[:rows] @ residual[:rows]) / dof
-    return np.asarray(s2 * np.linalg.pinv(information, rcond=1e-15, hermitian=True))
+    return np.asarray(s2 * inverse @ outer @ inverse)
 
 
 def parameter_information(problem: ShootingProblem, information: np.ndarray) -> np.ndarray:
@@ -344,7 +353,7 @@ def _result(
 ) -> FitResult:
     values, states = problem.unpack(solution.x)
     information = information_matrix(problem, jac)
-    cov = covariance(problem, information, solution.fun)
+    cov = covariance(problem, jac, solution.fun)
     count = len(parameters)
     info = parameter_information(problem, information)
     theta_errors = np.sqrt(np.clip(np.diag(cov)[:count], 0.0, None))

@@ -38,6 +38,7 @@ from lubrig_ros.app.recording.replay_flow import LosslessFlow
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.reader import Bag
 from lubrig_ros.core.errors import InputError
+from lubrig_ros.nodes.graph import matched_every_subscription
 from lubrig_ros.nodes.script import run_script
 
 LEGACY_STATE = "sensor_msgs/msg/JointState"
@@ -109,7 +110,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=float,
         default=0.0,
         metavar="S",
-        help="wait up to S seconds until every replayed topic has a subscriber",
+        help="wait up to S seconds until every replayed topic has a subscriber (each one discovered matched)",
     )
 
 
@@ -262,7 +263,8 @@ def run(args: argparse.Namespace, bag: Bag | None = None) -> int:
     spinner = Spinner(node)
     deadline = time.monotonic() + args.wait_for_subscribers
     while time.monotonic() < deadline and not stop[0]:
-        if all(p.get_subscription_count() > 0 for p in pubs.values()):
+        # a subscriber on every topic, and each discovered one matched (nodes/graph.py says why)
+        if all(p.get_subscription_count() > 0 and matched_every_subscription(node, p) for p in pubs.values()):
             break
         time.sleep(0.05)
     with player.cond:
