@@ -62,7 +62,7 @@ def test_realtime_steps_parameters_services_analysis(procs, probe):
     started, wall_start = time.monotonic(), time.time()
     # max_lag far beyond any stall of a loaded machine: the lag rule has tests of its own
     procs.node("plant", mode="realtime", diagnostics_period=0.2, max_lag=10.0, wait_for_subscriber="probe")
-    procs.node("belt_drive", mode="realtime")
+    procs.node("belt_drive", mode="realtime", wait_for_subscriber="probe")  # every band index from 0
     procs.node("analysis", window=256, n_scales=16, publish_period=0.2)
     state, band, blocks = f"{NS}/state", f"{NS}/band_velocity_block", f"{NS}/state_block"
     assert probe.wait_for_count(state, 1000, 180), procs.logs()

@@ -40,6 +40,10 @@ def test_unrecorded_and_wall_clock_plans_start_the_plant_last_without_clock():
     for mode, recorded in (("sim", False), ("realtime", True), ("realtime", False)):
         plan = rig_plan(Path("/r/c.yaml"), Path("/p/n.yaml"), mode, recorded=recorded)
         assert plan.node("plant").after == ("belt_drive", "analysis"), (mode, recorded)
+        # recorded: plant and belt_drive hold their first samples for the recorder in every mode
+        awaited = {plan.node(n).parameters.get("wait_for_subscriber") for n in ("plant", "belt_drive")}
+        assert awaited == ({RECORDER_PARTICIPANT} if recorded else {None}), (mode, recorded)
+        assert "required_consumers" not in plan.node("belt_drive").parameters  # sim flow control only
     plan = rig_plan(Path("/r/c.yaml"), Path("/p/n.yaml"), "realtime", publish_clock=True)
     assert "publish_clock" not in plan.node("plant").parameters and not plan.publish_clock
     assert all(n.parameters["use_sim_time"] is False for n in plan.nodes)

@@ -13,8 +13,10 @@ is stamped with the rig time of its first sample on the plant's clock. `realtime
 samples ahead of the plant, each with its sample index: on every flow_progress of the plant (one
 per state_block, about 50 per second) the blocks that keep `lookahead` samples ahead of it; a
 plant reset restarts the profile for the new segment; no end (the run's wall duration is the
-launcher's). Profile parameters (`profile.*`) can be changed at run time; invalid updates are
-rejected with the reason and the running profile kept.
+launcher's). The first block waits until the band blocks' subscriptions (the plant's, and that
+of `wait_for_subscriber`) are matched; a sample sent before would never reach them. Profile
+parameters (`profile.*`) can be changed at run time; invalid updates are rejected with the
+reason and the running profile kept.
 """
 
 from __future__ import annotations
@@ -100,6 +102,7 @@ class BeltDrive(Node):
             )
         else:
             self.ahead = AheadSchedule(plant, self.sample_rate, values["lookahead"])
+            self._delivering = False  # the band blocks' subscriptions matched: sending
             create_subscription(self, "flow_progress", self._on_realtime_progress)
             self.get_logger().info(
                 f"realtime: band samples {values['lookahead']} ahead of {plant} (its flow_progress)"
@@ -238,8 +241,18 @@ class BeltDrive(Node):
             self.get_logger().info(f"sim: waiting for {what}")
 
     def _on_realtime_progress(self, msg: FlowProgress) -> None:
-        """Realtime: keep `lookahead` band samples ahead of the plant's next sample."""
+        """Realtime: keep `lookahead` band samples ahead of the plant's next sample.
+
+        Nothing is sent until the subscriptions are matched (`_delivering`): the schedule then
+        sends every index from 0, those the plant has passed late (it counts them).
+        """
         assert self.ahead is not None
+        if not self._delivering:
+            self._delivering = self.publisher.get_subscription_count() > 0 and delivers_to(
+                self, [self.publisher], self.wait_for_subscriber
+            )
+            if not self._delivering:
+                return
         block = self.ahead.progress(
             str(msg.participant), int(msg.segment), int(msg.samples), _stamp_ns(msg), self.band
         )

@@ -66,8 +66,9 @@ WAIT_FOR_SUBSCRIBER = _p(
     "string",
     "",
     "hold the run until a node whose name starts with this (e.g. the recorder, 'lubrig_recorder') "
-    "subscribes to every output topic (sim, lockstep) or to state_block (realtime, rig_in_loop: "
-    "the loop starts then); empty = do not wait",
+    "subscribes to every output topic, matched (plant: sim, lockstep; belt_drive: the band blocks "
+    "in every mode), or to the block outputs (plant: realtime, rig_in_loop: the loop starts then); "
+    "empty = do not wait",
 )
 DEFAULT_REALTIME_PRIORITY = 50
 REALTIME_PRIORITY = _p(

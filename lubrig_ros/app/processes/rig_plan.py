@@ -10,9 +10,9 @@ What the plan decides, from the mode and whether the run is recorded:
   config/nodes.yaml (`params_file`), and runs in the rig's namespace;
 - sim: every node on the rig's ROS clock (`use_sim_time`), the plant publishes /clock unless told
   not to (one owner per ROS domain);
-- recorded: the plant (and in sim belt_drive) holds the run until the recorder has subscribed
-  (`wait_for_subscriber`), and belt_drive paces on the recorder's flow_progress
-  (`required_consumers`) when the recorder reports it;
+- recorded: the plant and belt_drive hold the run until the recorder has subscribed and its
+  subscriptions are matched (`wait_for_subscriber`), and in sim belt_drive paces on the
+  recorder's flow_progress (`required_consumers`) when the recorder reports it;
 - the plant's declared band source is belt_drive (`band_source`): any other publisher of band
   input is reported by the plant;
 - sim: the plant holds the run until the analysis has subscribed to state_block
@@ -128,12 +128,10 @@ def rig_plan(
         plant["publish_clock"] = True
     if sim:  # the analysis takes every sample from the first: the run waits for its subscription
         plant["state_subscribers"] = ["analysis"]
-    if recorded:
-        plant["wait_for_subscriber"] = RECORDER_NODE_PREFIX  # nothing published unrecorded
-        if sim:
-            belt["wait_for_subscriber"] = RECORDER_NODE_PREFIX
-            if recorder_reports_progress:
-                belt["required_consumers"] = [RECORDER_PARTICIPANT]
+    if recorded:  # nothing published unrecorded
+        plant["wait_for_subscriber"] = belt["wait_for_subscriber"] = RECORDER_NODE_PREFIX
+        if sim and recorder_reports_progress:
+            belt["required_consumers"] = [RECORDER_PARTICIPANT]
     plant.update(plant_extra or {})
     held_by_recorder = sim and recorded
     plant_after = () if held_by_recorder else ("belt_drive", "analysis")
