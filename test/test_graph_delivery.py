@@ -22,7 +22,7 @@ from std_msgs.msg import Float64
 
 from lubrig_interfaces.msg import BandVelocityBlock
 from lubrig_ros.app.interface import contract
-from lubrig_ros.nodes.graph import delivers_to, matched_every_subscription
+from lubrig_ros.nodes.graph import compatible_subscriptions, delivers_to, matched_every_subscription
 from lubrig_ros.nodes.interfaces import message_type, qos_profile
 
 pytestmark = pytest.mark.ros
@@ -70,10 +70,11 @@ def test_subscriptions_that_cannot_match_are_not_waited_for(writer: Probe, ros_d
         assert matched_every_subscription(writer.node, pub)
         # discovered (its node's name may reach the graph a moment later); nothing it could match
         wait_until(lambda: delivers_to(writer.node, [pub], "other"), 60, "delivers_to")
-        assert pub.get_subscription_count() == 0
+        assert pub.get_subscription_count() == 0 and compatible_subscriptions(writer.node, pub) == 0
         # a compatible one: waited for until matched, then counted
         other.subscribe(TOPIC, BandVelocityBlock, best_effort)
         wait_until(lambda: len(writer.node.get_subscriptions_info_by_topic(TOPIC)) == 3, 60, "discovery")
+        assert compatible_subscriptions(writer.node, pub) == 1  # the third one alone
         wait_until(lambda: pub.get_subscription_count() == 1, 60, "the match")
         assert matched_every_subscription(writer.node, pub)
     finally:

@@ -70,7 +70,7 @@ def _shadow_run(procs: Processes, tmp: Path, truth: dict[str, float], noise: flo
         probe.subscribe(measured_topics[1], WaveletFrame)
     record = tmp / "rig.npz"
     args = ["--config", str(run_yaml), "--samples", str(SAMPLES), "--out", str(record)]
-    args += ["--truth", json.dumps(truth), "--noise", str(noise)]
+    args += ["--truth", json.dumps(truth), "--noise", str(noise), "--wait-for-subscriber", "lubrig_recorder"]
     rig = procs.run_module("lubrig_testkit.shadow_rig", *args, timeout=300)
     assert rig.returncode == 0, rig.stdout + rig.stderr + procs.logs()
     assert json.loads(rig.stdout.strip().splitlines()[-1])["measured"] == SAMPLES

@@ -120,6 +120,29 @@ def subscribed_by(node: Node, topics: Iterable[str], prefix: str) -> bool:
     )
 
 
+def compatible_subscriptions(node: Node, publisher: Any) -> int | None:
+    """Discovered subscriptions to the publisher's topic that it can match; None before it is seen.
+
+    Its type and a QoS it serves, compared as the graph holds both (a local profile's unset
+    deadline reads 0 where the graph's reads infinite, and the two would not compare).
+    """
+    msgtype = message_type(publisher.msg_type)
+    own = [
+        info.qos_profile
+        for info in node.get_publishers_info_by_topic(publisher.topic_name)
+        if (info.node_name, info.node_namespace) == (node.get_name(), node.get_namespace())
+        and info.topic_type == msgtype
+    ]
+    if not own:
+        return None
+    return sum(
+        1
+        for info in node.get_subscriptions_info_by_topic(publisher.topic_name)
+        if info.topic_type == msgtype
+        and qos_check_compatible(own[0], info.qos_profile)[0] != QoSCompatibility.ERROR
+    )
+
+
 def matched_every_subscription(node: Node, publisher: Any) -> bool:
     """True when the publisher has matched every discovered subscription it can match.
 
@@ -127,15 +150,10 @@ def matched_every_subscription(node: Node, publisher: Any) -> bool:
     graph before the writer has matched it, and a sample published in between never reaches it
     (volatile durability; a reliable writer repairs only what it sent after the match). A
     subscription of another type, or with a QoS the publisher's cannot serve, never matches and
-    is not waited for.
+    is not waited for (`compatible_subscriptions`).
     """
-    compatible, msgtype = 0, message_type(publisher.msg_type)
-    for info in node.get_subscriptions_info_by_topic(publisher.topic_name):
-        if info.topic_type != msgtype:
-            continue
-        if qos_check_compatible(publisher.qos_profile, info.qos_profile)[0] != QoSCompatibility.ERROR:
-            compatible += 1
-    return publisher.get_subscription_count() >= compatible
+    compatible = compatible_subscriptions(node, publisher)
+    return compatible is not None and publisher.get_subscription_count() >= compatible
 
 
 def delivers_to(node: Node, publishers: Sequence[Any], prefix: str) -> bool:

@@ -62,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
     from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress
     from lubrig_ros.app.interface.contract import topic
     from lubrig_ros.core.presets import load_config
+    from lubrig_ros.nodes.graph import delivers_to
     from lubrig_ros.nodes.interfaces import qos_profile
 
     config = load_config(Path(args.config))
@@ -90,8 +91,19 @@ def run(args: argparse.Namespace) -> int:
     )
     deadline = time.monotonic() + args.timeout
     try:
+        # the plant subscribed to both, and every discovered subscription matched (a value sent
+        # before a match never reaches that subscriber): nodes/graph.py
         subscribed = (band_pub, measured_pub)
-        while not progress or any(p.get_subscription_count() == 0 for p in subscribed):
+
+        def ready() -> bool:
+            plant_there = all(p.get_subscription_count() > 0 for p in subscribed)
+            return (
+                plant_there
+                and delivers_to(node, [band_pub], args.wait_for_subscriber)
+                and delivers_to(node, [measured_pub], "")
+            )
+
+        while not progress or not ready():
             rclpy.spin_once(node, timeout_sec=0.05)
             if time.monotonic() > deadline:
                 print("shadow_rig: no plant (flow_progress and subscriptions) in time", file=sys.stderr)
@@ -144,6 +156,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--lead", type=int, default=900, help="band values sent beyond the plant's progress")
     parser.add_argument("--namespace", default="/lubrig")
+    parser.add_argument(
+        "--wait-for-subscriber",
+        default="",
+        metavar="PREFIX",
+        help="also wait until a node named PREFIX* (the recorder) has subscribed to the band blocks, matched",
+    )
     parser.add_argument("--timeout", type=float, default=120.0, help="s, the whole exchange at most")
     return run(parser.parse_args(argv))
 
