@@ -21,7 +21,6 @@ must recover the rig's parameters within test_fit's tolerances (2 standard error
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +29,7 @@ from lubrig_testkit.cli import lubrig
 from lubrig_testkit.harness import Processes
 from lubrig_testkit.reference_rig import ReferenceRig, reference_state
 
-from lubrig_interfaces.msg import StabilityFlags, WaveletFrame
+from lubrig_interfaces.msg import ShadowBlock, StabilityFlags, WaveletFrame
 from lubrig_ros.app.interface.contract import DEFAULT_NAMESPACE, resolve
 from lubrig_ros.bag.reader import read_arrays
 from lubrig_ros.cli.rig import recorder_command
@@ -45,12 +44,19 @@ SHADOW = resolve(DEFAULT_NAMESPACE, "shadow_block")
 STATE = resolve(DEFAULT_NAMESPACE, "state_block")
 
 
-def _shadow_run(procs: Processes, tmp: Path, truth: dict[str, float], noise: float, probe=None) -> dict:
-    """A recorded rig_in_loop run with shadow, driven by the synthetic rig; what the test needs."""
+def _shadow_run(
+    procs: Processes, tmp: Path, truth: dict[str, float], noise: float, probe, analysed: bool = False
+) -> dict:
+    """A recorded rig_in_loop run with shadow, driven by the synthetic rig; what the test needs.
+
+    The probe takes the shadow blocks as the recorder does: the plant is stopped once every pair
+    has been published (their count, not a wait of some seconds, says when).
+    """
     config = load_case(4).with_overrides(duration=SAMPLES / 1000, initial_perturbation=0.0)
     run_yaml = tmp / "run.yaml"
     run_yaml.write_text(config.to_yaml())
     bag = tmp / "bag"
+    probe.subscribe(SHADOW, ShadowBlock)  # before the plant: its first pairs wait for the match
     recorder = procs.command("recorder", recorder_command(bag, run_yaml, "rig_in_loop"))
     recorder.wait_for_output("recording", timeout=90)
     # max_lag far beyond any stall of a loaded machine: the loop catches up, never skips
@@ -64,7 +70,7 @@ def _shadow_run(procs: Processes, tmp: Path, truth: dict[str, float], noise: flo
         state_per_sample=False,
     )
     measured_topics = [resolve(DEFAULT_NAMESPACE, f"measured/{n}") for n in ("stability", "wavelet_frame")]
-    if probe is not None:
+    if analysed:
         procs.node("analysis", config_file=str(run_yaml), publish_period=0.1, window=1024)
         probe.subscribe(measured_topics[0], StabilityFlags)
         probe.subscribe(measured_topics[1], WaveletFrame)
@@ -74,11 +80,13 @@ def _shadow_run(procs: Processes, tmp: Path, truth: dict[str, float], noise: flo
     rig = procs.run_module("lubrig_testkit.shadow_rig", *args, timeout=300)
     assert rig.returncode == 0, rig.stdout + rig.stderr + procs.logs()
     assert json.loads(rig.stdout.strip().splitlines()[-1])["measured"] == SAMPLES
-    if probe is not None:  # the measured signal analysed beside the model's
+    if analysed:  # the measured signal analysed beside the model's
         for topic in measured_topics:
             assert probe.wait_for(lambda t=topic: len(probe.messages[t]) >= 2, 60), procs.logs()
-    # the last pairs go out with the next state block (every 20 ms): give them time, then stop
-    time.sleep(1.5)
+    # the last pairs go out with the next state block: wait for every one, then stop
+    published = lambda: sum(len(m.sample_index) for m in probe.messages[SHADOW])  # noqa: E731
+    if not probe.wait_for(lambda: published() >= SAMPLES, 120):
+        pytest.fail(f"{published()} of {SAMPLES} pairs published\n{rig.stdout}\n{plant.log()}")
     assert plant.stop() == 0, plant.log()
     assert recorder.stop() == 0, recorder.log()
     arrays = read_arrays(bag, [SHADOW, STATE])
@@ -121,15 +129,15 @@ def _pairs(run: dict) -> dict[str, np.ndarray]:
 
 
 def test_shadow_residual_is_zero_with_the_plant_s_own_parameters(procs, probe, tmp_path: Path) -> None:
-    pairs = _pairs(_shadow_run(procs, tmp_path, {}, noise=0.0, probe=probe))
+    pairs = _pairs(_shadow_run(procs, tmp_path, {}, noise=0.0, probe=probe, analysed=True))
     bound = TOLERANCE * pairs["range"]
     np.testing.assert_allclose(pairs["residual"], pairs["expected"], rtol=0, atol=bound)
     assert np.max(np.abs(pairs["residual"])) <= bound
     assert pairs["rms"][-1] <= bound
 
 
-def test_shadow_residual_of_another_rig_and_its_bag_fitted(procs, tmp_path: Path) -> None:
-    run = _shadow_run(procs, tmp_path, TRUTH, noise=0.01)
+def test_shadow_residual_of_another_rig_and_its_bag_fitted(procs, probe, tmp_path: Path) -> None:
+    run = _shadow_run(procs, tmp_path, TRUTH, noise=0.01, probe=probe)
     pairs = _pairs(run)
     bound = TOLERANCE * pairs["range"]
     residual, expected = pairs["residual"], pairs["expected"]

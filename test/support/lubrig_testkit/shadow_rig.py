@@ -1,7 +1,8 @@
 """A synthetic "real rig" for shadow mode: its band sent ahead in blocks, its measured displacement after.
 
 ``python -m lubrig_testkit.shadow_rig --config RUN.yaml --samples N --out record.npz
-[--truth JSON] [--noise 0.01] [--seed 1] [--lead 900] [--namespace /lubrig]``
+[--truth JSON] [--noise 0.01] [--seed 1] [--lead 500] [--namespace /lubrig]
+[--wait-for-subscriber lubrig_recorder]``
 
 Physics: the independent reference rig (reference_rig.py: scipy LSODA, nothing of lubrig_ros's
 integrator) with the `--truth` parameters (ReferenceRig fields; the others the study's), at rest
@@ -14,7 +15,10 @@ Sending, by the numbers the plant pairs on (app/plant/session.py, "Shadow"): ban
 value k of a BandVelocityBlock (first_sample_index = the number of its first value, segment 0),
 sent ahead, never more than `--lead` values beyond what the plant has taken (its flow_progress,
 counted from its progress when the first block went out: the rig_in_loop plant queues at most
-one second of values, which it takes one per tick, in order); measured value k is one
+one second of values, which it takes one per tick, in order, and drops what overflows). The
+plant takes the first value when the first block arrives, some time after that progress (under
+load, over 0.1 s was seen), so the queue holds `--lead` values plus that delay: the default
+lead, half the queue, leaves half a second for it. Measured value k is one
 std_msgs/Float64 on measured_displacement, sent once the plant's progress says it has taken band
 value k (after its sample, as a real rig's would come). The numbers, not the timing, decide the
 pairs: however late a message is, value k pairs with the sample integrated with band value k.
@@ -154,7 +158,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--truth", default="{}", help="JSON of ReferenceRig fields (the rig's parameters)")
     parser.add_argument("--noise", type=float, default=0.0, help="measurement noise, share of the range of x")
     parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--lead", type=int, default=900, help="band values sent beyond the plant's progress")
+    parser.add_argument("--lead", type=int, default=500, help="band values sent beyond the plant's progress")
     parser.add_argument("--namespace", default="/lubrig")
     parser.add_argument(
         "--wait-for-subscriber",
