@@ -62,7 +62,7 @@ def test_subscriptions_that_cannot_match_are_not_waited_for(writer: Probe, ros_d
     best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
     pub = writer.node.create_publisher(BandVelocityBlock, TOPIC, best_effort)
     other = Probe(ros_domain, "other")
-    typed = Probe(ros_domain, "other_typed")  # one participant holds one type per topic name
+    typed = Probe(ros_domain, "typed")  # one participant holds one type per topic name
     try:
         other.subscribe(TOPIC, BandVelocityBlock, QOS)  # reliable: a best-effort writer cannot serve it
         typed.subscribe(TOPIC, Float64, best_effort)  # another type on the same name

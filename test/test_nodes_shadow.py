@@ -56,7 +56,9 @@ def _shadow_run(
     run_yaml = tmp / "run.yaml"
     run_yaml.write_text(config.to_yaml())
     bag = tmp / "bag"
-    probe.subscribe(SHADOW, ShadowBlock)  # before the plant: its first pairs wait for the match
+    # before the recorder and the plant: on the graph by the plant's start, so its wait (every
+    # discovered subscription matched, nodes/graph.delivers_to) covers the probe's too
+    probe.subscribe(SHADOW, ShadowBlock)
     recorder = procs.command("recorder", recorder_command(bag, run_yaml, "rig_in_loop"))
     recorder.wait_for_output("recording", timeout=90)
     # max_lag far beyond any stall of a loaded machine: the loop catches up, never skips

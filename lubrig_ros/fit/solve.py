@@ -9,13 +9,13 @@ from core/schema.py) minimizes the residuals of fit.shooting. At the solution:
   the parameters; s² is the data residuals' mean square per degree of freedom (the noise estimate
   corrected by what the model leaves); standard errors in the parameters' units (delta method
   through θ = ln p where the range is positive);
-* identifiability: asked of the information with the continuity rows weighted COVARIANCE_WEIGHT
-  (the penalty's limit, the segments one trajectory). A parameter is named as not determined by
-  the data when its relative standard
+* identifiability: a parameter is named as not determined by the data when its relative standard
   error exceeds MAX_RELATIVE_ERROR, when its correlation with another free parameter exceeds
-  MAX_CORRELATION in magnitude, or when it takes part in a near-null direction of the parameters'
-  information (eigenvalue of the correlation-scaled information below MIN_EIGENVALUE: a
-  combination the data cannot see, such as A·G and A·η_ref, which are all μ depends on).
+  MAX_CORRELATION in magnitude (both from the covariance above), or when it takes part in a
+  near-null direction of the parameters' information with the continuity rows weighted
+  COVARIANCE_WEIGHT, the penalty's limit (eigenvalue of the correlation-scaled information below
+  MIN_EIGENVALUE: a combination the data cannot see, such as A·G and A·η_ref, which are all μ
+  depends on).
 """
 
 from __future__ import annotations

@@ -81,6 +81,9 @@ class BeltDrive(Node):
         plant = qualified_name(namespace, values["plant_node"])
         self.sim: SimSchedule | None = None
         self.ahead: AheadSchedule | None = None
+        self.plant = plant
+        self.seen_at: float | None = None  # the plant's band subscription first discovered
+        self._waiting_logged = 0.0
         if self.mode == "sim":
             problem = flow_window_problem(values["flow_window"], values["block_length"])
             if problem is not None:
@@ -88,11 +91,8 @@ class BeltDrive(Node):
             required = tuple(qualified_name(namespace, n) for n in values["required_consumers"])
             gate = FlowGate(values["flow_window"], plant, required)
             self.sim = SimSchedule(gate, self.sample_rate, values["duration"], values["block_length"])
-            self.plant = plant
-            self.seen_at: float | None = None  # the plant's band subscription first discovered
             self._reported = False  # the plant's first flow_progress (its segment) logged
             self.started = False
-            self._waiting_logged = 0.0
             create_subscription(self, "flow_progress", self._on_progress)
             # steady clock: pacing is on flow_progress alone, never on /clock (use_sim_time or not)
             common.steady_timer(self, 0.05, self._pump)
@@ -225,20 +225,28 @@ class BeltDrive(Node):
             return False
         if self.seen_at is None or now - self.seen_at < self.start_delay:
             return False
-        # the plant's subscription is discovered (seen_at); delivers_to: matched, and so is the
-        # awaited recorder's (a band block sent before the match would never reach it)
-        if not delivers_to(self, [self.publisher], self.wait_for_subscriber):
-            awaited = f" and {self.wait_for_subscriber}*" if self.wait_for_subscriber else ""
-            self._waiting(f"the band blocks' subscriptions of the plant{awaited} to be matched", now)
+        if not self._reaches_subscribers(now):
             return False
         self.started = True
         self.get_logger().info("sim: every participant reported; sending band samples")
         return True
 
+    def _reaches_subscribers(self, now: float) -> bool:
+        """A band block sent now reaches the plant and the awaited node (`wait_for_subscriber`).
+
+        The plant's subscription is discovered, and the publisher has matched every discovered
+        subscription (nodes/graph.delivers_to): a block sent before the match never reaches it.
+        """
+        if self._plant_discovered() and delivers_to(self, [self.publisher], self.wait_for_subscriber):
+            return True
+        awaited = f" and {self.wait_for_subscriber}*" if self.wait_for_subscriber else ""
+        self._waiting(f"the band blocks' subscriptions of the plant{awaited} to be matched", now)
+        return False
+
     def _waiting(self, what: str, now: float) -> None:
         if now - self._waiting_logged > 5.0:
             self._waiting_logged = now
-            self.get_logger().info(f"sim: waiting for {what}")
+            self.get_logger().info(f"{self.mode}: waiting for {what}")
 
     def _on_realtime_progress(self, msg: FlowProgress) -> None:
         """Realtime: keep `lookahead` band samples ahead of the plant's next sample.
@@ -248,9 +256,7 @@ class BeltDrive(Node):
         """
         assert self.ahead is not None
         if not self._delivering:
-            self._delivering = self.publisher.get_subscription_count() > 0 and delivers_to(
-                self, [self.publisher], self.wait_for_subscriber
-            )
+            self._delivering = self._reaches_subscribers(time.monotonic())
             if not self._delivering:
                 return
         block = self.ahead.progress(

@@ -100,12 +100,8 @@ def run(args: argparse.Namespace) -> int:
         subscribed = (band_pub, measured_pub)
 
         def ready() -> bool:
-            plant_there = all(p.get_subscription_count() > 0 for p in subscribed)
-            return (
-                plant_there
-                and delivers_to(node, [band_pub], args.wait_for_subscriber)
-                and delivers_to(node, [measured_pub], "")
-            )
+            plant = delivers_to(node, list(subscribed), "plant")  # its subscriptions, matched
+            return plant and delivers_to(node, [band_pub], args.wait_for_subscriber)
 
         while not progress or not ready():
             rclpy.spin_once(node, timeout_sec=0.05)
