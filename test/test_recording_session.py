@@ -76,6 +76,21 @@ def test_blocks_are_written_counted_and_reported_as_flow_progress(tmp_path: Path
     assert values[config_topic] == [CONFIG]  # written first, though never received
 
 
+def test_first_report_waits_for_the_required_streams_readers_to_match(tmp_path: Path) -> None:
+    """A writer's match alone is half of one: the run starts on the recorder's own readers' match."""
+    session = _session(tmp_path, ["state_block", "band_velocity_block", "state"], sim=False)
+    session.required = (resolve(NS, "state_block"), resolve(NS, "band_velocity_block"))
+    reports: list[tuple[int, int, int]] = []
+    session.on_progress = lambda seg, n, t: reports.append((seg, n, t))
+    session.matched([_index(session, "state_block"), _index(session, "state")])
+    assert reports == []  # band_velocity_block's reader has not matched belt_drive yet
+    session.matched([_index(session, "band_velocity_block")])
+    assert reports == [(0, 0, 0)]
+    session.matched([_index(session, "band_velocity_block")])
+    assert reports == [(0, 0, 0)]  # once
+    session.close()
+
+
 def test_a_lost_block_is_a_gap_named_in_the_problems_and_accounting_json(tmp_path: Path) -> None:
     session = _session(tmp_path, ["state_block"], sim=False)
     reports: list[tuple[int, int, int]] = []

@@ -132,6 +132,7 @@ class RecordingSession:
         #: sample streams this recording must hold samples of: one that got none is a problem
         #: (a stream lost whole has no gap to show); full names, checked by `required_streams`
         self.required: tuple[str, ...] = ()
+        self.matched_streams: set[str] = set()  # streams whose reader has matched a publisher
         self.use_sim_time = use_sim_time
         self.run_config = run_config
         self.config_written = False
@@ -172,10 +173,17 @@ class RecordingSession:
                 self._write(stream, t, data)
 
     def matched(self, streams: Sequence[int]) -> None:
-        """These streams' subscriptions have a publisher: once state_block has, report (0, 0)."""
-        names = {self.streams[i].spec.name for i in streams}
-        if self.state_block in names and self.progress is None:
-            self.report_progress(0, 0)  # subscribed and matched: belt_drive may start
+        """These streams' subscriptions have matched a publisher; report (0, 0) once all that count have.
+
+        Those that count: state_block and every `required` stream. A publisher's own count of
+        matched subscriptions is half of a match: its reader drops what arrives before the reader
+        has matched the writer in turn (a volatile reader starts at the writer's next sample), so
+        belt_drive and the plant send nothing before this report.
+        """
+        self.matched_streams.update(self.streams[i].spec.name for i in streams)
+        awaited = {self.state_block, *self.required}
+        if self.progress is None and awaited <= self.matched_streams:
+            self.report_progress(0, 0)  # subscribed and matched both ways: the run may start
 
     def start(self) -> None:
         """Without use_sim_time the run configuration is written now (receive-time log times)."""

@@ -180,7 +180,8 @@ def await_subscriber(
     Its subscriptions in the graph and matched by these publishers (samples published before the
     match would be lost; discovery matches each endpoint on its own, and under load one topic
     matched 1.2 s after another of the same subscriber process), then its flow_progress
-    (`heard()`: the recorder reports once its state_block subscription has matched); a consumer
+    (`heard()`: the recorder reports once its own readers have matched, state_block's and those of
+    its required streams: a writer's match alone is half of one); a consumer
     that reports none gets `progress_wait` s of discovery.
     """
     log = node.get_logger()

@@ -10,7 +10,9 @@ are printed at the end, written to <bag>/accounting.json, and make the exit stat
 
 Flow control (sim): this process is the node ``<namespace>/lubrig_recorder`` (RECORDER_NODE) and
 publishes lubrig_interfaces/FlowProgress on ``<namespace>/flow_progress``: samples 0 once its
-state_block subscription has matched a publisher, after every state_block it has written the
+state_block subscription and that of every --require-samples stream have matched a publisher
+(a reader drops what arrives before it has matched the writer), after every state_block it has
+written the
 samples of that segment taken in order, and the latest value again every 0.2 s (heartbeat);
 with --progress-heartbeat-only (`lubrig rig` in the wall-clock modes, where nothing paces on
 it) only on matching and as the heartbeat.
@@ -250,7 +252,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--progress-heartbeat-only",
         dest="progress_per_block",
         action="store_false",
-        help="FlowProgress once the state_block subscription has matched and then every 0.2 s, "
+        help="FlowProgress once the subscriptions to state_block and the required streams have "
+        "matched and then every 0.2 s, "
         "not after every block (a wall-clock rig is not paced on it; its plant starts once it "
         "has heard the recorder, so no sample is published before the recorder takes them)",
     )
