@@ -164,11 +164,10 @@ class Plant(Node):
         self.out.config.publish(String(data=self.session.config.to_yaml()))
         self.out.complete.publish(Bool(data=False))
         # raw (serialized CDR) subscription: about 2x cheaper per message than a Float64 object
-        self._band_subscriptions = [
-            create_subscription(self, n, cb, raw=n == "band_velocity")
+        self._band_topics = [
+            create_subscription(self, n, cb, raw=n == "band_velocity").topic_name
             for n, cb in (("band_velocity", self._on_band_raw), ("band_velocity_block", self._on_band_block))
         ]
-        self._band_topics = [s.topic_name for s in self._band_subscriptions]
         if self.shadow:  # raw as band_velocity: a malformed payload is NaN, rejected and counted
             create_subscription(self, "measured_displacement", self._on_measured_raw, raw=True)
         # nothing runs before this namespace is known to be this rig's (another rig's plant, or a
@@ -268,8 +267,7 @@ class Plant(Node):
 
         Until the awaited subscriber (the recorder) has subscribed to every output, and each of
         `state_subscribers` to state_block, the plant stays silent, so belt_drive does not start
-        and no sample is published before it is recorded (and analysed); sim: until a band
-        publisher has matched too (`_band_matched`).
+        and no sample is published before it is recorded (and analysed).
         Lockstep: the initial state once announced, and the newest state again while unanswered.
         """
         if not self._announced:
@@ -279,8 +277,6 @@ class Plant(Node):
                 return
             blocks = [self.out.block]
             if not all(delivers_to(self, blocks, n) for n in self.state_subscribers):
-                return
-            if self.mode == "sim" and not self._band_matched():
                 return
             self._announced = True
             self.get_logger().info(f"{self.mode}: flow_progress as {self.participant}")
@@ -295,14 +291,6 @@ class Plant(Node):
             if lockstep and self.out.state is not None and unanswered and resend is not None:
                 self.out.state.publish(resend)  # the answer may have been lost
                 self._state_sent = time.monotonic()
-
-    def _band_matched(self) -> bool:
-        """Sim: a band subscription has matched a publisher (belt_drive starts on the announcement).
-
-        The band source's writer may match this reader before this reader matches it; a block
-        sent in between is dropped here (a volatile reader starts at the writer's next sample).
-        """
-        return any(s.get_publisher_count() > 0 for s in self._band_subscriptions)
 
     def _rig_now(self) -> float:
         """Stepped modes: rig time of the newest sample published (0 before the first).
