@@ -20,7 +20,7 @@ from std_msgs.msg import Float64
 from lubrig_interfaces.msg import FlowProgress, RigStateBlock
 from lubrig_ros.app.interface.contract import resolve, select_topics
 from lubrig_ros.bag.reader import RIG_STATE_FIELDS
-from lubrig_ros.bag.recording import SIM_HOLD_NS, WALL_CLOCK_NS, RecordingSession
+from lubrig_ros.bag.recording import REQUIRED_MATCH_WAIT_S, SIM_HOLD_NS, WALL_CLOCK_NS, RecordingSession
 
 NS = "/lubrig"
 MS = 1_000_000
@@ -88,6 +88,26 @@ def test_first_report_waits_for_the_required_streams_readers_to_match(tmp_path: 
     assert reports == [(0, 0, 0)]
     session.matched([_index(session, "band_velocity_block")])
     assert reports == [(0, 0, 0)]  # once
+    assert session.ready_without == ()
+    session.close()
+
+
+def test_first_report_waits_for_a_required_stream_only_so_long(tmp_path: Path) -> None:
+    """A required stream nobody publishes must not hold the run for ever: named, then reported."""
+    session = _session(tmp_path, ["state_block", "band_velocity_block"], sim=False)
+    session.required = (resolve(NS, "band_velocity_block"),)
+    reports: list[tuple[int, int, int]] = []
+    session.on_progress = lambda seg, n, t: reports.append((seg, n, t))
+    session.heartbeat()
+    assert reports == []  # nothing matched: no report, no heartbeat
+    session.matched([_index(session, "state_block")])
+    session.heartbeat()
+    assert reports == [] and session.ready_without == ()
+    assert session.state_matched_at is not None
+    session.state_matched_at -= REQUIRED_MATCH_WAIT_S
+    session.heartbeat()
+    assert reports == [(0, 0, 0)]
+    assert session.ready_without == (resolve(NS, "band_velocity_block"),)
     session.close()
 
 

@@ -45,6 +45,10 @@ SIM_HOLD_NS = 300_000_000
 WALL_CLOCK_NS = 100_000_000 * 1_000_000_000
 #: The flow-progress heartbeat: the latest value again after this long without a report (s).
 HEARTBEAT_S = 0.2
+#: s after state_block's reader has matched that the first report waits for the required streams'
+#: readers; then it is sent without them, named in `ready_without` (nothing publishes them yet:
+#: the run must not wait for ever on a stream that may never come).
+REQUIRED_MATCH_WAIT_S = 5.0
 CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 
 #: One received message: (index of its stream in `RecordingSession.streams`, receive time ns, CDR).
@@ -133,6 +137,8 @@ class RecordingSession:
         #: (a stream lost whole has no gap to show); full names, checked by `required_streams`
         self.required: tuple[str, ...] = ()
         self.matched_streams: set[str] = set()  # streams whose reader has matched a publisher
+        self.state_matched_at: float | None = None  # monotonic s: state_block's reader matched
+        self.ready_without: tuple[str, ...] = ()  # required streams the first report did not wait for
         self.use_sim_time = use_sim_time
         self.run_config = run_config
         self.config_written = False
@@ -181,9 +187,14 @@ class RecordingSession:
         belt_drive and the plant send nothing before this report.
         """
         self.matched_streams.update(self.streams[i].spec.name for i in streams)
-        awaited = {self.state_block, *self.required}
-        if self.progress is None and awaited <= self.matched_streams:
+        if self.state_block in self.matched_streams and self.state_matched_at is None:
+            self.state_matched_at = time.monotonic()
+        if self.progress is None and self.state_matched_at is not None and not self.unmatched_required():
             self.report_progress(0, 0)  # subscribed and matched both ways: the run may start
+
+    def unmatched_required(self) -> list[str]:
+        """Required streams whose reader has not matched a publisher yet."""
+        return [name for name in self.required if name not in self.matched_streams]
 
     def start(self) -> None:
         """Without use_sim_time the run configuration is written now (receive-time log times)."""
@@ -275,7 +286,17 @@ class RecordingSession:
         self.last_progress = time.monotonic()
 
     def heartbeat(self) -> None:
-        """Report again after HEARTBEAT_S without a report: what is taken now."""
+        """Report again after HEARTBEAT_S without a report: what is taken now.
+
+        Before the first report: once REQUIRED_MATCH_WAIT_S have passed since state_block's
+        reader matched, the first report, without the required streams still unmatched
+        (`ready_without` names them).
+        """
+        since = None if self.state_matched_at is None else time.monotonic() - self.state_matched_at
+        if self.progress is None and since is not None and since >= REQUIRED_MATCH_WAIT_S:
+            self.ready_without = tuple(self.unmatched_required())
+            self.report_progress(0, 0)
+            return
         if self.progress is None or time.monotonic() - self.last_progress < HEARTBEAT_S:
             return
         account = self._state_account()

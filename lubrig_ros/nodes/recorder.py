@@ -11,8 +11,8 @@ are printed at the end, written to <bag>/accounting.json, and make the exit stat
 Flow control (sim): this process is the node ``<namespace>/lubrig_recorder`` (RECORDER_NODE) and
 publishes lubrig_interfaces/FlowProgress on ``<namespace>/flow_progress``: samples 0 once its
 state_block subscription and that of every --require-samples stream have matched a publisher
-(a reader drops what arrives before it has matched the writer), after every state_block it has
-written the
+(a reader drops what arrives before it has matched the writer; a required stream is waited for
+REQUIRED_MATCH_WAIT_S, then named in a warning), after every state_block it has written the
 samples of that segment taken in order, and the latest value again every 0.2 s (heartbeat);
 with --progress-heartbeat-only (`lubrig rig` in the wall-clock modes, where nothing paces on
 it) only on matching and as the heartbeat.
@@ -51,7 +51,7 @@ from lubrig_ros.app.interface.contract import (
 from lubrig_ros.app.interface.contract import select_topics as _select_topics
 from lubrig_ros.app.processes.startup_trace import mark
 from lubrig_ros.bag.errors import BagError
-from lubrig_ros.bag.recording import RecordingSession, required_streams
+from lubrig_ros.bag.recording import REQUIRED_MATCH_WAIT_S, RecordingSession, required_streams
 from lubrig_ros.bag.writer import BagWriter
 from lubrig_ros.core.errors import InputError
 from lubrig_ros.nodes.recorder_workers import PoolMessage, WorkerPool, sim_time_overrides, start_fork_server
@@ -90,10 +90,6 @@ class ProgressNode:
         msg.participant, msg.segment, msg.samples = self.participant, segment, samples
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(max(stamp_ns, 0), 1_000_000_000)
         self.pub.publish(msg)
-
-    def error(self, text: str) -> None:
-        """An error line on /rosout."""
-        self.node.get_logger().error(text)
 
     def destroy(self) -> None:
         """Destroy the node and rclpy's context of this process."""
@@ -152,10 +148,17 @@ class Recorder:
 
     def error(self, text: str) -> None:
         """An error line: on stderr (`recorder: error: ...`) and, once the node is up, on /rosout."""
-        print(f"recorder: error: {text}", file=sys.stderr, flush=True)
+        self._say("error", text)
+
+    def warning(self, text: str) -> None:
+        """A warning line: on stderr (`recorder: warning: ...`) and, once the node is up, on /rosout."""
+        self._say("warning", text)
+
+    def _say(self, level: str, text: str) -> None:
+        print(f"recorder: {level}: {text}", file=sys.stderr, flush=True)
         if self.progress_node is not None:
             with contextlib.suppress(Exception):  # a context already shut down: stderr has it
-                self.progress_node.error(text)
+                getattr(self.progress_node.node.get_logger(), level)(text)
 
     def stop_progress(self) -> None:
         """Destroy the progress node (and rclpy's context of this process)."""
@@ -180,7 +183,14 @@ class Recorder:
                 self._message(message)
             elif session.held:
                 session.handle([])
+            waiting = session.progress is None
             session.heartbeat()
+            if waiting and session.ready_without:
+                self.warning(
+                    f"no publisher of required stream(s) {', '.join(session.ready_without)} "
+                    f"{REQUIRED_MATCH_WAIT_S:g} s after state_block's: reporting ready without them "
+                    "(their first samples may be lost)"
+                )
             session.flush_if_due(self.flush_interval)
             self.pool.check_alive()
         self.drain()
