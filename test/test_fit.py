@@ -10,6 +10,9 @@ cannot separate must be named as such.
 from __future__ import annotations
 
 import math
+import os
+import signal
+import time
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +23,8 @@ from lubrig_ros.core.errors import InputError
 from lubrig_ros.core.presets import RunConfig, load_case
 from lubrig_ros.fit.data import MeasuredData, checked, load_csv
 from lubrig_ros.fit.parameters import fittable_names, free_parameters
+from lubrig_ros.fit.refit import refit_errors
+from lubrig_ros.fit.shooting import Runner, ShootingProblem
 from lubrig_ros.fit.solve import FitResult, fit
 
 #: The true rig of the synthetic records (the fit starts from the study's defaults).
@@ -93,6 +98,57 @@ def test_a_set_the_data_cannot_separate_is_named() -> None:
     assert set(result.undetermined) == set(names), result.undetermined
     assert all("near-singular" in why or "correlation" in why for why in result.undetermined.values())
     assert result.to_dict()["estimates"]["contact_area"]["identifiable"] is False
+
+
+def test_refit_errors_measure_the_spread_over_fresh_noise() -> None:
+    """Refits (parametric bootstrap) on a sliding record, where the linearization holds: their
+    spread agrees with the linearized error (six refits: the ratio's 95 % range is 0.41–1.60),
+    in the parameter's own unit, with noise at the residual RMS; fit.json carries both."""
+    config = load_case(4).with_overrides(duration=2.0)
+    data = synthetic(config, {"damping_ratio": TRUTH["damping_ratio"]})
+    result = fit(data, config, ["damping_ratio"])
+    result.refits = refit_errors(data, result, 6, seed=1)
+    assert (result.refits.count, result.refits.failed) == (6, 0)
+    ratio = result.refits.errors[0] / result.errors[0]
+    assert 0.4 < ratio < 2.5, (result.refits.errors, result.errors)
+    document = result.to_dict()
+    assert document["estimates"]["damping_ratio"]["refit_standard_error"] == result.refits.errors[0]
+    assert document["refits"]["count"] == 6 and document["refits"]["seed"] == 1
+    with pytest.raises(InputError, match="--refits 3 is too few"):
+        refit_errors(data, result, 3)
+
+
+def _handles(pid: int, signum: int) -> bool:
+    """Whether process pid has a handler of its own for signal signum (/proc's SigCgt mask)."""
+    with open(f"/proc/{pid}/status", encoding="ascii") as status:
+        caught = next(line for line in status if line.startswith("SigCgt:"))
+    return bool(int(caught.split()[1], 16) >> (signum - 1) & 1)
+
+
+def test_pool_workers_die_on_sigterm_whatever_the_parent_handles() -> None:
+    """A worker with the parent's Python SIGTERM handler can miss Pool.terminate's signal (one
+    landing just before it blocks on the task lock) and hang the fit's end: it takes the default."""
+
+    def parent_handler(signum: int, _frame: object) -> None:
+        raise KeyboardInterrupt(signum)
+
+    previous = signal.signal(signal.SIGTERM, parent_handler)
+    try:
+        config = load_case(4).with_overrides(duration=0.5)
+        parameters = free_parameters(["damping_ratio"], config)
+        problem = ShootingProblem(synthetic(config, {}), config, parameters, 250)
+        runner = Runner(problem, 2)
+        try:
+            pids = [p.pid for p in runner.pool._pool]
+            assert len(pids) == 2 and _handles(os.getpid(), signal.SIGTERM)
+            deadline = time.monotonic() + 60.0  # the initializer runs as each worker starts
+            while any(_handles(pid, signal.SIGTERM) for pid in pids) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert not any(_handles(pid, signal.SIGTERM) for pid in pids)
+        finally:
+            runner.close()
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def test_free_parameters_come_from_the_schema() -> None:

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import multiprocessing
+import signal
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -398,6 +399,18 @@ class ShootingProblem:
         return difference
 
 
+def _worker_start() -> None:
+    """A forked worker takes SIGTERM's default action (death) and leaves Ctrl-C to its parent.
+
+    It would inherit the parent's handlers. A Python handler runs only between bytecodes, so a
+    SIGTERM from Pool.terminate that lands just before the worker blocks on the pool's task lock
+    is never acted on, and the pool's join waits for ever (seen beside two CPU hogs in a test
+    process whose SIGTERM handler raises KeyboardInterrupt).
+    """
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _worker_run(task: tuple[np.ndarray, np.ndarray, float]) -> Run:
     assert _WORKER_PROBLEM is not None
     return _WORKER_PROBLEM.run(task[0], task[1])
@@ -413,7 +426,7 @@ class Runner:
         self._last: tuple[np.ndarray, np.ndarray] | None = None
         if workers > 1:
             _WORKER_PROBLEM = problem  # the forked workers inherit it
-            self.pool = multiprocessing.get_context("fork").Pool(workers)
+            self.pool = multiprocessing.get_context("fork").Pool(workers, initializer=_worker_start)
 
     def map(self, tasks: list[tuple[np.ndarray, np.ndarray, float]]) -> list[Run]:
         """The runs of the tasks, in order."""
@@ -423,7 +436,7 @@ class Runner:
         return runs
 
     def close(self) -> None:
-        """End the worker processes."""
+        """End the worker processes (SIGTERM: at once, also after a Ctrl-C in the middle of a map)."""
         if self.pool is not None:
             self.pool.terminate()
             self.pool.join()
