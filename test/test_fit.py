@@ -23,7 +23,6 @@ from lubrig_ros.core.errors import InputError
 from lubrig_ros.core.presets import RunConfig, load_case
 from lubrig_ros.fit.data import MeasuredData, checked, load_csv
 from lubrig_ros.fit.parameters import fittable_names, free_parameters
-from lubrig_ros.fit.refit import refit_errors
 from lubrig_ros.fit.shooting import Runner, ShootingProblem
 from lubrig_ros.fit.solve import FitResult, fit
 
@@ -98,24 +97,6 @@ def test_a_set_the_data_cannot_separate_is_named() -> None:
     assert set(result.undetermined) == set(names), result.undetermined
     assert all("near-singular" in why or "correlation" in why for why in result.undetermined.values())
     assert result.to_dict()["estimates"]["contact_area"]["identifiable"] is False
-
-
-def test_refit_errors_measure_the_spread_over_fresh_noise() -> None:
-    """Refits (parametric bootstrap) on a sliding record, where the linearization holds: their
-    spread agrees with the linearized error (six refits: the ratio's 95 % range is 0.41–1.60),
-    in the parameter's own unit, with noise at the residual RMS; fit.json carries both."""
-    config = load_case(4).with_overrides(duration=2.0)
-    data = synthetic(config, {"damping_ratio": TRUTH["damping_ratio"]})
-    result = fit(data, config, ["damping_ratio"])
-    result.refits = refit_errors(data, result, 6, seed=1)
-    assert (result.refits.count, result.refits.failed) == (6, 0)
-    ratio = result.refits.errors[0] / result.errors[0]
-    assert 0.4 < ratio < 2.5, (result.refits.errors, result.errors)
-    document = result.to_dict()
-    assert document["estimates"]["damping_ratio"]["refit_standard_error"] == result.refits.errors[0]
-    assert document["refits"]["count"] == 6 and document["refits"]["seed"] == 1
-    with pytest.raises(InputError, match="--refits 3 is too few"):
-        refit_errors(data, result, 3)
 
 
 def _handles(pid: int, signum: int) -> bool:

@@ -12,7 +12,6 @@ import argparse
 import os
 import sys
 from pathlib import Path
-from typing import Any
 
 from lubrig_ros.core.errors import InputError
 
@@ -46,17 +45,6 @@ def _free_help() -> str:
     )
 
 
-def _count(option: str, text: str, valid: str) -> int:
-    """A whole number >= 0 from the command line, or one line naming the bad value."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise InputError(f"{option} {text!r} is invalid: expected {valid}")
-    return value
-
-
 def run(args: argparse.Namespace) -> int:
     """Entry of `lubrig fit`."""
     segment = parse_finite("--segment", args.segment, "a segment length in s > 0")
@@ -66,12 +54,6 @@ def run(args: argparse.Namespace) -> int:
     evaluations = int(parse_finite("--max-evaluations", args.max_evaluations, "an integer >= 1"))
     if evaluations < 1:
         raise InputError(f"--max-evaluations {args.max_evaluations!r} must be >= 1")
-    from ..fit.refit import MIN_REFITS, refit_errors
-
-    refits = _count("--refits", args.refits, f"0 (none) or a number of refits >= {MIN_REFITS}")
-    if 0 < refits < MIN_REFITS:
-        raise InputError(f"--refits {args.refits!r} is too few: expected 0 (none) or at least {MIN_REFITS}")
-    seed = _count("--refit-seed", args.refit_seed, "an integer >= 0")
     config = source_from_args(args).resolve()
     from ..fit.data import load_data
     from ..fit.parameters import free_parameters
@@ -86,16 +68,12 @@ def run(args: argparse.Namespace) -> int:
     from ..fit.solve import fit
 
     out = rundir.prepare_output_dir(Path(args.out), args.force, "--out", FIT_FILES)
-    options: dict[str, Any] = {"segment_seconds": segment, "workers": workers, "max_evaluations": evaluations}
-    result = fit(data, config, names, **options)
-    if refits:
-        result.refits = refit_errors(data, result, refits, seed, **options)
+    result = fit(data, config, names, segment_seconds=segment, workers=workers, max_evaluations=evaluations)
     write_outputs(out, data, result, _source_text(args))
-    for j, (name, value, error, p) in enumerate(
-        zip(result.names, result.values, result.errors, result.parameters, strict=True)
+    for name, value, error, p in zip(
+        result.names, result.values, result.errors, result.parameters, strict=True
     ):
-        spread = "" if result.refits is None else f" (refits: ± {result.refits.errors[j]:.3g})"
-        print(f"{name} = {value:.6g} ± {error:.3g}{p.spec.unit_text}{spread}")
+        print(f"{name} = {value:.6g} ± {error:.3g}{p.spec.unit_text}")
     print(
         f"{data.time.size} samples, {result.evaluations} evaluations in {result.wall_time:.1f} s "
         f"({result.status}); results in {out}/"
@@ -146,18 +124,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="N",
         default="60",
         help="residual evaluations per stage at most (default 60)",
-    )
-    parser.add_argument(
-        "--refits",
-        metavar="N",
-        default="0",
-        help="also fit N records made of the fitted model plus fresh noise at the residual RMS, and "
-        "report the spread of their estimates as the refit standard error (a parametric bootstrap; "
-        "the linearized error is too small where a slip's timing moves with the parameters, "
-        "docs/fitting.md); each a whole fit (default 0: none)",
-    )
-    parser.add_argument(
-        "--refit-seed", metavar="S", default="0", help="seed of the refits' noise (default 0)"
     )
     add_force(parser)
     parser.set_defaults(func=run)

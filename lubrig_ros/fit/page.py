@@ -189,26 +189,14 @@ def _markdown(document: dict[str, Any], figures: list[str]) -> str:
         f"{document['data']['sample_rate_hz']:g} Hz, sha256 `{document['data']['sha256'][:16]}…`).",
         "",
     ]
-    refits = document.get("refits")
-    spread = f" refit error ({refits['count']} refits) |" if refits else ""
     lines += [
-        f"| parameter | estimate | standard error |{spread} unit | start | identifiable |",
-        "|---|---|---|" + ("---|" if refits else "") + "---|---|---|",
+        "| parameter | estimate | standard error | unit | start | identifiable |",
+        "|---|---|---|---|---|---|",
     ]
     for name, e in document["estimates"].items():
-        cells = [_error(e["standard_error"])] + ([_error(e["refit_standard_error"])] if refits else [])
+        error = "—" if e["standard_error"] is None else f"{e['standard_error']:.3g}"
         seen = "yes" if e["identifiable"] else "**no**"
-        lines.append(
-            f"| {name} | {e['value']:.6g} | {' | '.join(cells)} | {e['unit']} | {e['start']:.6g} | {seen} |"
-        )
-    if refits:
-        lines += [
-            "",
-            f"Refit errors: the spread of {refits['count'] - refits['failed']} fits of the fitted model "
-            f"plus fresh noise ({refits['noise']}; seed {refits['seed']}, {refits['failed']} did not "
-            "converge); where they exceed the standard errors, the linearization does not hold over "
-            "the estimates' spread: use the larger.",
-        ]
+        lines.append(f"| {name} | {e['value']:.6g} | {error} | {e['unit']} | {e['start']:.6g} | {seen} |")
     lines.append("")
     for name, why in document["undetermined"].items():
         lines.append(f"- **{name}** is not determined by the data: {why}.")
@@ -225,10 +213,6 @@ def _markdown(document: dict[str, Any], figures: list[str]) -> str:
     ]
     lines += [f"![{name}]({name})" for name in figures]
     return "\n".join(lines) + "\n"
-
-
-def _error(value: float | None) -> str:
-    return "—" if value is None else f"{value:.3g}"
 
 
 def write_outputs(out: Path, data: MeasuredData, result: FitResult, start: str) -> dict[str, Any]:

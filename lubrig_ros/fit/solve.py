@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -33,9 +33,6 @@ from ..core.presets import RunConfig
 from .data import MeasuredData
 from .parameters import FreeParameter, current_value, free_parameters
 from .shooting import DEFECT_WEIGHT, Runner, ShootingProblem
-
-if TYPE_CHECKING:
-    from .refit import Refits
 
 #: Weight of the continuity rows in the information asked about identifiability (the penalty's limit).
 COVARIANCE_WEIGHT = 1e3
@@ -88,8 +85,6 @@ class FitResult:
     states: np.ndarray | None = None
     #: the fitted model at every sample (the shooting segments), by measured stream
     model: dict[str, np.ndarray] = field(default_factory=dict)
-    #: errors from refits over fresh noise (fit/refit.py), when asked for
-    refits: Refits | None = None
 
     def misfit(self) -> dict[str, float]:
         """Streams whose residual RMS exceeds MAX_MISFIT noise estimates: stream → RMS / noise."""
@@ -114,10 +109,7 @@ class FitResult:
             }
             for p, v, e, s in zip(self.parameters, self.values, self.errors, self.start, strict=True)
         }
-        if self.refits is not None:
-            for name, error in zip(self.names, self.refits.errors, strict=True):
-                estimates[name]["refit_standard_error"] = _json_float(error)
-        document = {
+        return {
             "estimates": estimates,
             "correlation": {
                 "names": self.names,
@@ -147,9 +139,6 @@ class FitResult:
                 "wall_time_s": self.wall_time,
             },
         }
-        if self.refits is not None:
-            document["refits"] = self.refits.to_dict(self.names)
-        return document
 
 
 def _json_float(value: float) -> float | None:
