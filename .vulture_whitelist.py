@@ -32,7 +32,7 @@ time_min, time_max, zone_name, resonance_detail, iterations, global_significance
 resyncs, _.resyncs, warm_up_seconds
 
 # Layouts named in full: the slots of the compiled stepper's arrays and the MCAP opcodes.
-RIG_SIZE, H, W, X, PARTIAL_X0, PARTIAL_W0, OP_ATTACHMENT
+RIG_SIZE, H, W, X, OP_ATTACHMENT
 
 # Facts with their home in the package that the tests check the running system against (the
 # shadow topics of the contract, the shipped viewer layouts, the figures' colour maps) and
@@ -43,4 +43,4 @@ _.bad_updates, _.chunks_flushed, _.samples_seen
 # The library's API for scientific Python users, documented in docs/ (model.md, wavelets.md,
 # report.md, recording.md, extending.md): functions a script calls that no command happens to call.
 stability_map, dominant_frequencies, recording_summary, unregister_profile
-_.reconstructed_variance
+_.reconstructed_variance, _.advance_states, _.substeps

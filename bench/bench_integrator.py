@@ -5,7 +5,11 @@ the model document's equations written again, scipy LSODA at rtol 1e-12 with ste
 sample period), then a tolerance sweep of three solvers of the same equation with the band linear
 between the 1 kHz samples:
 
-* lubrig: core.run.simulate (the RigIntegrator, compiled Radau IIA);
+* lubrig: core.run.simulate's integrator (the RigIntegrator, compiled Radau IIA, steps spanning
+  samples where the band is a line: core/stepper.py), timed on its states alone
+  (RigIntegrator.advance_states: x and ẋ at the samples, what the other two return); the columns
+  a run also derives at every sample (μ, v_rel) are timed apart and printed beside it;
+* lubrig 1/sample: the same with max_step_samples=1 (every step ends on a sample), in the same run;
 * numbalsoda: the C++ LSODA of numbalsoda (a benchmark dependency, `make bench-setup`) on a
   right-hand side compiled with numba's cfunc that calls the project's own compiled law kernel
   (core.junction.mu_and_slope), state scaled so that its one scalar atol equals lubrig's
@@ -36,7 +40,7 @@ import tempfile
 import time
 import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from lubrig_testkit.reference_rig import reference_displacement
@@ -45,7 +49,6 @@ from scipy.integrate import solve_ivp
 from lubrig_ros.core.params import FrictionParameters, RigParameters
 from lubrig_ros.core.presets import RunConfig, config_dir, load_case, load_config
 from lubrig_ros.core.run import band_samples, integrator_for, simulate
-from lubrig_ros.core.trajectory import concatenate
 
 #: The issue's cases: name → (what it is, how to load it).
 CASES: dict[str, tuple[str, Callable[[], RunConfig]]] = {
@@ -92,13 +95,32 @@ def cpu_best(run: Callable[[], tuple[np.ndarray, int]], repeat: int) -> tuple[np
     return x, steps, best
 
 
-def lubrig_run(config: RunConfig, rtol: float) -> tuple[np.ndarray, int]:
-    """core.run.simulate's path (integrator_for, advance over the band samples); x and substeps."""
+def lubrig_run(config: RunConfig, rtol: float, span: int | None = None) -> tuple[np.ndarray, int]:
+    """core.run.simulate's integrator over the band samples, states only; x and substeps.
+
+    span: max_step_samples (None: the integrator's default).
+    """
     config = config.with_overrides(rtol=rtol)
     integrator = integrator_for(config)
-    first = integrator.current()
-    run = concatenate([first, integrator.advance(band_samples(config, 0, config.samples))])
-    return run.displacement, integrator.substeps
+    if span is not None:
+        integrator = replace(integrator, max_step_samples=span)
+    first = integrator.current().displacement
+    x, _ = integrator.advance_states(band_samples(config, 0, config.samples))
+    return np.concatenate([first, x]), integrator.substeps
+
+
+def derived_columns_cpu(config: RunConfig, repeat: int) -> float:
+    """CPU s of what advance adds to advance_states at the default rtol: μ, v_rel, the Trajectory."""
+    band = band_samples(config, 0, config.samples)
+    full = states = np.inf
+    for _ in range(repeat):
+        started = time.process_time()
+        integrator_for(config).advance(band)
+        full = min(full, time.process_time() - started)
+        started = time.process_time()
+        integrator_for(config).advance_states(band)
+        states = min(states, time.process_time() - started)
+    return full - states
 
 
 #: Layout of the numbalsoda right-hand side's data array (after it: the law's parameters, then
@@ -266,9 +288,15 @@ def sweep_case(config: RunConfig, repeat: int, scipy_budget: float, with_numbals
     elapsed = time.process_time() - started
     print(f"  reference (testkit: scipy LSODA rtol 1e-12, steps <= 1 sample): {elapsed:.1f} s CPU")
     results = []
-    for rtol in LUBRIG_RTOLS:
-        x, steps, cpu = cpu_best(lambda r=rtol: lubrig_run(config, r), repeat)
-        results.append(Result("lubrig", rtol, cpu, error_of(x, reference), steps=steps))
+    for name, span in (("lubrig", None), ("lubrig 1/sample", 1)):
+        for rtol in LUBRIG_RTOLS:
+            x, steps, cpu = cpu_best(lambda r=rtol, s=span: lubrig_run(config, r, s), repeat)
+            results.append(Result(name, rtol, cpu, error_of(x, reference), steps=steps))
+    derived = derived_columns_cpu(config, repeat)
+    print(
+        f"  lubrig's μ, v_rel and Trajectory at every sample (advance − advance_states, default rtol): "
+        f"{derived * 1e3:.2f} ms CPU, not in the figures below"
+    )
     if with_numbalsoda:
         results += numbalsoda_sweep(config, t_s, v_s, x0, reference, repeat)
     if scipy_budget > 0:
@@ -325,9 +353,9 @@ def matched(results: list[Result], solver: str, bound: float) -> Result | None:
 
 
 def print_results(results: list[Result]) -> None:
-    print(f"  {'solver':12s} {'rtol':>8s} {'CPU ms':>9s}  {'error/range':11s} steps (lubrig)")
+    print(f"  {'solver':15s} {'rtol':>8s} {'CPU ms':>9s}  {'error/range':11s} steps (lubrig)")
     for r in results:
-        head = f"  {r.solver:12s} {r.rtol:8.1e} {r.cpu * 1e3:9.2f}"
+        head = f"  {r.solver:15s} {r.rtol:8.1e} {r.cpu * 1e3:9.2f}"
         if r.failure:
             print(f"{head}  FAILED: {r.failure}")
         else:

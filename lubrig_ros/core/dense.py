@@ -71,6 +71,7 @@ def _fine(
         band[0],
         sample_rate=ZOOM / span,
         rtol=rtol,
+        max_step_samples=1,  # every sub-sample a step end: they are there to resolve the interval
         initial_displacement=state[0],
         initial_velocity=state[1],
     )

@@ -25,22 +25,9 @@ import numpy as np
 from lubrig_ros.core.errors import InputError, LubrigError
 
 from .friction_laws import law_for
-from .kernels import (
-    _A,
-    _A2,
-    _C,
-    _E,
-    BUDGET,
-    BUDGET_SPENT,
-    COMPLETED,
-    OK,
-    PARTIAL_T0,
-    RIG_LAYOUT,
-    STATE_SIZE,
-    SUBSTEPS,
-    specialize,
-)
+from .kernels import _A, _A2, _C, _E, RIG_LAYOUT, specialize
 from .params import RigParameters
+from .stepper import BUDGET, BUDGET_SPENT, COMPLETED, OK, PARTIAL_T0, SUBSTEPS, initial_state
 from .trajectory import Trajectory, TrajectorySample
 
 
@@ -63,6 +50,8 @@ class RigIntegrator:
     initial_perturbation: float = 0.01
     initial_displacement: float | None = None  # m; overrides the perturbation rule
     initial_velocity: float = 0.0  # m/s
+    #: longest step in sample periods: a step spans samples where the band is a line (stepper.py)
+    max_step_samples: int = 16
     _state: np.ndarray = field(init=False, repr=False)
     _rig_array: np.ndarray = field(init=False, repr=False)
     _fp: np.ndarray = field(init=False, repr=False)
@@ -80,6 +69,9 @@ class RigIntegrator:
             setattr(self, name, value)
         if self.sample_rate <= 0.0:
             raise InputError(f"sample_rate={self.sample_rate!r} must be > 0 Hz")
+        span = self.max_step_samples
+        if isinstance(span, bool) or not isinstance(span, int) or span < 1:
+            raise InputError(f"max_step_samples={self.max_step_samples!r} must be an integer >= 1")
         if not 1e-13 <= self.rtol <= 1e-2:
             raise InputError(f"rtol={self.rtol!r} is outside the valid range [1e-13, 1e-2]")
         self._rig_array = np.array([float(getattr(self.rig, name)) for name in RIG_LAYOUT])
@@ -118,15 +110,9 @@ class RigIntegrator:
             x_start = float(self.initial_displacement)
         else:
             x_start = (1.0 + self.initial_perturbation) * self.equilibrium_displacement
-        self._state = np.zeros(STATE_SIZE)
-        self._state[:5] = (
-            float(time),
-            x_start,
-            self.initial_velocity,
-            self.initial_band_velocity,
-            0.1 * self.dt,
+        self._state = initial_state(
+            float(time), x_start, float(self.initial_velocity), self.initial_band_velocity, self.dt
         )
-        self._state[PARTIAL_T0] = math.nan
 
     def _check_resolved(self, band_velocity: float) -> None:
         """ValueError for a band at rest in all but name: 0 < |v| below the velocity tolerance.
@@ -180,12 +166,19 @@ class RigIntegrator:
     def advance(self, band_velocities: np.typing.ArrayLike) -> Trajectory:
         """Integrate over the next len(band_velocities) samples; sample k holds v_band at t + (k+1)·dt."""
         band = self._band(band_velocities)
-        if self.in_progress:
-            raise RuntimeError("a sample is in progress (advance_bounded ran out of budget); finish it first")
         t_start = self._state[0]
-        out_x, out_w = self._run(band, 0)
+        out_x, out_w = self._states(band)
         time = t_start + self.dt * np.arange(1, band.size + 1)
         return self._sampled(time, out_x, out_w, band)
+
+    def advance_states(self, band_velocities: np.typing.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """The displacement (m) and velocity (m/s) at the next samples: `advance` without μ and v_rel."""
+        return self._states(self._band(band_velocities))
+
+    def _states(self, band: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.in_progress:
+            raise RuntimeError("a sample is in progress (advance_bounded ran out of budget); finish it first")
+        return self._run(band, 0)
 
     def advance_bounded(self, band_velocity: float, max_attempts: int) -> TrajectorySample | None:
         """One sample with at most `max_attempts` step attempts; None when they ran out.
@@ -248,6 +241,7 @@ class RigIntegrator:
             _A2,
             _C,
             _E,
+            float(self.max_step_samples),
             out_x,
             out_w,
         )

@@ -47,16 +47,17 @@ import numpy as np
 from numba import njit, types
 from numba.core import caching as _caching
 
+from . import stepper as stepper_module
+
 #: Type of a law's p: a contiguous, writable float64 array.
 LAW_PARAMETERS = types.Array(types.float64, 1, "C")
 #: Signature every law kernel is compiled for: (v, p) -> (μ, dμ/dv).
 LAW_SIGNATURE = types.UniTuple(types.float64, 2)(types.float64, LAW_PARAMETERS)
 
 
-# Placeholders: each law's specialized copy of the functions below binds these globals to the law's
-# kernel and to its own Radau step (see specialize).
+# Placeholder: each law's specialized copy of the functions below binds it to the law's kernel
+# (see specialize).
 _LAW: Any = None
-_STEP: Any = None
 
 
 def _evaluate_law_py(v: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -82,27 +83,12 @@ _MU_REAL = 3.0 + 3.0 ** (2.0 / 3.0) - 3.0 ** (1.0 / 3.0)
 _NEWTON_MAXITER = 40
 _REL_FACTOR = 4.0
 _NEWTON_TOL = 0.03
-_MIN_FACTOR = 0.2
-_MAX_FACTOR = 8.0
-
-# Status codes of the compiled kernel.
-OK = 0
-STEP_TOO_SMALL = 1
-#: The call's step budget (state[BUDGET]) ran out inside a sample; the next call resumes it.
-BUDGET_SPENT = 2
 
 #: Layout of the rig array the stepper reads (float64 array of RIG_SIZE, SI units): the index of
 #: each RigParameters attribute of RIG_LAYOUT (the integrator builds the array in this order).
 RIG_MASS, RIG_DAMPING, RIG_STIFFNESS, RIG_VELOCITY_FACTOR, RIG_NORMAL_FORCE = 0, 1, 2, 3, 4
 RIG_LAYOUT = ("mass", "damping", "stiffness", "velocity_factor", "normal_force")
 RIG_SIZE = len(RIG_LAYOUT)
-
-#: Layout of the stepper state (float64 array of STATE_SIZE).
-T, X, W, BAND, H, SUBSTEPS = 0, 1, 2, 3, 4, 5
-BUDGET = 6  # step attempts allowed in one call, accepted or rejected (0: unlimited)
-PARTIAL_T0, PARTIAL_X0, PARTIAL_W0 = 7, 8, 9  # start of a sample in progress (t0 NaN: none)
-COMPLETED = 10  # samples the last call completed
-STATE_SIZE = 11
 
 
 @njit(cache=True)
@@ -278,112 +264,6 @@ def _radau_step_py(  # noqa: C901
     return err <= 1.0, x_new, w_new, err
 
 
-def _advance_py(
-    state: np.ndarray,
-    band: np.ndarray,
-    dt: float,
-    rig: np.ndarray,
-    fp: np.ndarray,
-    rtol: float,
-    atol_x: float,
-    atol_w: float,
-    aa: np.ndarray,
-    a2: np.ndarray,
-    cc: np.ndarray,
-    ee: np.ndarray,
-    out_x: np.ndarray,
-    out_w: np.ndarray,
-) -> int:
-    """Advance over len(band) samples; state (layout: T … COMPLETED above) is updated in place.
-
-    On failure (STEP_TOO_SMALL) the state is that of the last completed sample, so a caller can
-    carry on from the sample grid. With a budget (state[BUDGET] > 0 step attempts) a call that
-    spends it inside a sample returns BUDGET_SPENT with the state at the last accepted substep
-    and the sample's start in PARTIAL_*: the next call with the same band value finishes that
-    sample first (a resumed sample gives the same result as one integrated in one call).
-    state[COMPLETED] counts the samples this call wrote to out_x/out_w.
-    """
-    t, x, w, vb_prev, h = state[0], state[1], state[2], state[3], state[4]
-    substeps = state[5]
-    budget = state[6]
-    attempts = 0.0
-    resume = not math.isnan(state[7])
-    work = np.empty((8, 3))
-    jac = np.empty((3, 3))
-    for k in range(band.size):
-        if resume:
-            t0, x0, w0 = state[7], state[8], state[9]
-            resume = False
-        else:
-            t0 = t
-            x0, w0 = x, w  # the last completed sample, restored if this one fails
-        t_end = t0 + dt
-        vb_next = band[k]
-        while t < t_end:
-            if budget > 0.0 and attempts >= budget:
-                state[0], state[1], state[2], state[3], state[4] = t, x, w, vb_prev, h
-                state[5] = substeps
-                state[7], state[8], state[9] = t0, x0, w0
-                state[10] = k
-                return BUDGET_SPENT
-            attempts += 1.0
-            remaining = t_end - t
-            last = h >= remaining * (1.0 - 1e-12)
-            step = remaining if last else h
-            accepted, x_new, w_new, err = _STEP(
-                x,
-                w,
-                t,
-                step,
-                t0,
-                dt,
-                vb_prev,
-                vb_next,
-                rig,
-                fp,
-                rtol,
-                atol_x,
-                atol_w,
-                aa,
-                a2,
-                cc,
-                ee,
-                work,
-                jac,
-            )
-            if math.isfinite(err):
-                factor = 0.9 * err ** (-0.25) if err > 0.0 else _MAX_FACTOR
-                factor = min(_MAX_FACTOR, max(_MIN_FACTOR, factor))
-            else:
-                factor = 0.5
-            if accepted:
-                x, w = x_new, w_new
-                t = t_end if last else t + step
-                substeps += 1.0
-                h_new = step * factor
-                if last and step < h and factor >= 1.0:
-                    h_new = max(h, h_new)  # a step cut short to land on the sample says little
-                h = min(h_new, dt)
-            else:
-                h = step * min(factor, 0.9)
-                if h < 1e-15 * max(1.0, abs(t)):
-                    # leave the state on the sample grid: the last completed sample
-                    state[0], state[1], state[2], state[3], state[4] = t0, x0, w0, vb_prev, dt * 0.1
-                    state[5] = substeps
-                    state[7] = math.nan
-                    state[10] = k
-                    return STEP_TOO_SMALL
-        t = t_end
-        vb_prev = vb_next
-        out_x[k] = x
-        out_w[k] = w
-    state[0], state[1], state[2], state[3], state[4] = t, x, w, vb_prev, h
-    state[5] = substeps
-    state[7] = math.nan
-    state[10] = band.size
-    return OK
-
-
 class _LawLocator(_caching._CacheLocator):
     """Cache locator of a law's specialized kernels: the normal place, keyed on both source files.
 
@@ -448,16 +328,20 @@ def _clone(function: Any, tag: str, bound: dict[str, Any], files: tuple[str, ...
 def specialize(kernel: Any) -> tuple[Any, Any]:
     """(stepper, evaluator) compiled for one law kernel, inlined, cached by both files.
 
-    stepper(state, band, dt, rig, fp, rtol, atol_x, atol_w, A, A2, C, E, out_x, out_w) -> status
-    (see advance); evaluator(v, p) -> (μ, dμ/dv) for contiguous float64 arrays. The integrator
-    binds both once (a per-sample call then costs what it did with one built-in law).
+    stepper(state, band, dt, rig, fp, rtol, atol_x, atol_w, A, A2, C, E, max_span, out_x, out_w)
+    -> status (core.stepper's sample loop around this file's Radau step); evaluator(v, p) -> (μ,
+    dμ/dv) for contiguous float64 arrays. The integrator binds both once (a per-sample call then
+    costs what it did with one built-in law). The loop's cache is keyed on the law's file and this
+    one too: it inlines the step compiled from here.
     """
     py_func = kernel.py_func
     kernel = getattr(kernel, "dispatcher", kernel)  # a LawKernel compiles here, when first used
     files = (os.path.abspath(inspect.getfile(py_func)),)
     tag = re.sub(r"\W", "_", f"{py_func.__module__}.{py_func.__qualname__}")
     step = njit(cache=True)(_clone(_radau_step_py, tag, {"_LAW": kernel}, files))
-    stepper = njit(cache=True)(_clone(_advance_py, tag, {"_LAW": kernel, "_STEP": step}, files))
+    loop_files = (*files, os.path.abspath(__file__))
+    land = njit(cache=True)(_clone(stepper_module._land_py, tag, {"_STEP": step}, loop_files))
+    stepper = njit(cache=True)(_clone(stepper_module._advance_py, tag, {"_LAND": land}, loop_files))
     evaluator = njit(cache=True)(_clone(_evaluate_law_py, tag, {"_LAW": kernel}, files))
     return stepper, evaluator
 
@@ -468,25 +352,3 @@ def evaluate_law(kernel: Any, velocity: np.ndarray, p: np.ndarray) -> tuple[np.n
     evaluator = specialize(kernel)[1]
     result: tuple[np.ndarray, np.ndarray] = evaluator(v, np.ascontiguousarray(p, dtype=np.float64))
     return result
-
-
-def advance(
-    state: np.ndarray,
-    band: np.ndarray,
-    dt: float,
-    rig: np.ndarray,
-    kernel: Any,
-    fp: np.ndarray,
-    rtol: float,
-    atol_x: float,
-    atol_w: float,
-    out_x: np.ndarray,
-    out_w: np.ndarray,
-) -> int:
-    """Advance over len(band) samples with the law `kernel` (p = fp); OK, STEP_TOO_SMALL or BUDGET_SPENT.
-
-    state (STATE_SIZE values, layout above) is updated in place; rig = [m, c, k, γ, N].
-    """
-    return int(
-        specialize(kernel)[0](state, band, dt, rig, fp, rtol, atol_x, atol_w, _A, _A2, _C, _E, out_x, out_w)
-    )

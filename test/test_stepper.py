@@ -1,0 +1,98 @@
+"""Steps that span samples (core/stepper.py): where they happen, what a kink does, determinism.
+
+A step may span samples where the band is a straight line; its samples are read off the step's
+collocation polynomial, and a sample off the line ends the step at the sample before it. The
+reference is lubrig_testkit.reference_rig (the model document's equations, scipy LSODA at rtol
+1e-12, steps of at most one sample period), which shares no code with the kernel.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from lubrig_testkit.reference_rig import reference_displacement
+
+from lubrig_ros.core.errors import InputError
+from lubrig_ros.core.integrator import RigIntegrator
+from lubrig_ros.core.params import RigParameters
+
+RATE = 1000.0
+
+
+def run(band: np.ndarray, **options) -> tuple[RigIntegrator, np.ndarray]:
+    """x at t = 0 and at every sample of `band` (the band at rest at band[0] before t = 0)."""
+    integrator = RigIntegrator(RigParameters(), float(band[0]), **options)
+    x = np.concatenate([integrator.current().displacement, integrator.advance(band).displacement])
+    return integrator, x
+
+
+def reference(band: np.ndarray, x: np.ndarray) -> np.ndarray:
+    time = np.arange(band.size + 1) / RATE
+    velocities = np.concatenate([[band[0]], band])
+    return reference_displacement(time, velocities, float(x[0]), RigParameters().velocity_factor)
+
+
+def test_steps_span_samples_on_a_constant_band_and_agree_with_the_reference() -> None:
+    # physical stick-slip at 2e-8 m/s (config/stickslip.yaml's band): stuck most of the time
+    band = np.full(8000, 2e-8)
+    spanning, x = run(band)
+    one_per_sample, x_one = run(band, max_step_samples=1)
+    assert spanning.substeps < band.size / 3 < one_per_sample.substeps
+    x_ref = reference(band, x)
+    scale = np.ptp(x_ref)
+    assert np.max(np.abs(x - x_ref)) < 1e-5 * scale
+    assert np.max(np.abs(x - x_one)) < 1e-5 * scale
+
+
+def test_a_kink_after_a_long_line_is_integrated_as_the_reference() -> None:
+    # a constant band, then a ramp up, then a jump down: speculative steps made on the first line
+    # are found invalid at the kinks and integrated again up to the sample before each
+    band = np.concatenate(
+        [np.full(1500, 2e-8), np.linspace(2e-8, 2e-7, 700), np.full(800, 5e-8), np.full(1000, 3e-8)]
+    )
+    spanning, x = run(band)
+    assert spanning.substeps < band.size
+    x_ref = reference(band, x)
+    assert np.max(np.abs(x - x_ref)) < 1e-5 * np.ptp(x_ref)
+
+
+def test_a_band_with_a_kink_at_every_sample_is_stepped_sample_by_sample() -> None:
+    # a measured band's noise: no three samples on a line, so no step spans one, and the run is
+    # the one with max_step_samples=1 bit for bit
+    rng = np.random.default_rng(3)
+    band = 1e-7 * (1.0 + 0.05 * rng.standard_normal(3000))
+    spanning, x = run(band)
+    one_per_sample, x_one = run(band, max_step_samples=1)
+    assert np.array_equal(x, x_one)
+    assert spanning.substeps == one_per_sample.substeps >= band.size
+
+
+@pytest.mark.parametrize("budget", [1, 3, 0])
+def test_blocks_samples_and_budgets_give_the_run_of_one_call(budget: int) -> None:
+    # the band's lines, kinks and stick-slip of the tests above, fed in random blocks (budget 0)
+    # or sample by sample with a step budget that cuts samples short
+    band = np.concatenate([np.full(2000, 2e-8), np.linspace(2e-8, 1e-7, 300), np.full(700, 1e-7)])
+    band[2600] *= 1.01  # one sample off its line
+    whole, x_whole = run(band)
+    integrator = RigIntegrator(RigParameters(), float(band[0]))
+    rng = np.random.default_rng(budget)
+    parts, start = [], 0
+    while start < band.size:
+        if budget:
+            sample = None
+            while sample is None:
+                sample = integrator.advance_bounded(float(band[start]), budget)
+            parts.append([sample.displacement])
+            start += 1
+        else:
+            count = int(rng.integers(1, 60))
+            parts.append(integrator.advance(band[start : start + count]).displacement)
+            start += count
+    assert np.array_equal(np.concatenate(parts), x_whole[1:])
+    assert integrator.substeps == whole.substeps
+
+
+@pytest.mark.parametrize("bad", [0, -3, 2.5, True])
+def test_a_bad_step_span_is_refused(bad) -> None:
+    with pytest.raises(InputError, match=f"max_step_samples={bad!r} must be an integer >= 1"):
+        RigIntegrator(RigParameters(), 1e-7, max_step_samples=bad)
