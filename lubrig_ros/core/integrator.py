@@ -1,8 +1,8 @@
 """Stiff integration of the rig  m ẍ + c ẋ + k x = N μ(v_band − γ ẋ)  sample by sample.
 
-Method (compiled in kernels.py, one stepper for every friction law of core.friction_laws):
-3-stage Radau IIA (order 5, L-stable, stiffly accurate) with
-adaptive substeps and the embedded error estimate of Hairer & Wanner (as in scipy's Radau). The
+Method (compiled in kernels.py and stepper.py, one stepper for every friction law of
+core.friction_laws): 3-stage Radau IIA (order 5, L-stable, stiffly accurate) with
+adaptive steps and the embedded error estimate of Hairer & Wanner (as in scipy's Radau). The
 stage equations are solved by full Newton on the three stage velocities only (displacements are
 linear in them). Sticking (v_rel ≈ 0, where μ ∝ |v|^0.38 and dμ/dv reaches 1e11 s/m) needs two
 safeguards, without which explicit methods fail and implicit ones chatter: a stuck mass is
@@ -10,8 +10,9 @@ predicted to move with the band, and each Newton iterate may change |v_rel| by a
 and not jump across zero. Otherwise Newton lands on the unstable zone-2 root of equal μ.
 
 Band velocity is known at the output samples only (as for a node receiving messages) and is taken
-as linear between consecutive samples. Substeps end exactly on every sample, so a run integrated
-in one call and one advanced sample by sample give bit-identical results.
+as linear between consecutive samples. Where it is a straight line a step may span samples
+(stepper.py); every stepping decision depends on the samples received so far, so a run integrated
+in one call, in blocks or sample by sample gives bit-identical results.
 """
 
 from __future__ import annotations
@@ -50,7 +51,8 @@ class RigIntegrator:
     initial_perturbation: float = 0.01
     initial_displacement: float | None = None  # m; overrides the perturbation rule
     initial_velocity: float = 0.0  # m/s
-    #: longest step in sample periods: a step spans samples where the band is a line (stepper.py)
+    #: longest step in sample periods: a step spans samples where the band is a line (stepper.py);
+    #: a new value applies to the steps begun after it is set
     max_step_samples: int = 16
     _state: np.ndarray = field(init=False, repr=False)
     _rig_array: np.ndarray = field(init=False, repr=False)
@@ -69,9 +71,7 @@ class RigIntegrator:
             setattr(self, name, value)
         if self.sample_rate <= 0.0:
             raise InputError(f"sample_rate={self.sample_rate!r} must be > 0 Hz")
-        span = self.max_step_samples
-        if isinstance(span, bool) or not isinstance(span, int) or span < 1:
-            raise InputError(f"max_step_samples={self.max_step_samples!r} must be an integer >= 1")
+        self._check_span()
         if not 1e-13 <= self.rtol <= 1e-2:
             raise InputError(f"rtol={self.rtol!r} is outside the valid range [1e-13, 1e-2]")
         self._rig_array = np.array([float(getattr(self.rig, name)) for name in RIG_LAYOUT])
@@ -113,6 +113,12 @@ class RigIntegrator:
         self._state = initial_state(
             float(time), x_start, float(self.initial_velocity), self.initial_band_velocity, self.dt
         )
+
+    def _check_span(self) -> None:
+        """InputError unless max_step_samples is an integer >= 1 (checked on every call: settable)."""
+        span = self.max_step_samples
+        if isinstance(span, bool) or not isinstance(span, int) or span < 1:
+            raise InputError(f"max_step_samples={span!r} must be an integer >= 1")
 
     def _check_resolved(self, band_velocity: float) -> None:
         """ValueError for a band at rest in all but name: 0 < |v| below the velocity tolerance.
@@ -226,6 +232,7 @@ class RigIntegrator:
 
     def _step(self, band: np.ndarray, max_attempts: int, out_x: np.ndarray, out_w: np.ndarray) -> int:
         """The compiled stepper over `band` into out_x/out_w; the samples completed."""
+        self._check_span()
         atol_x, atol_w = self._atol
         self._state[BUDGET] = float(max_attempts)
         status = self._stepper(

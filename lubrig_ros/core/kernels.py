@@ -27,9 +27,10 @@ under the factory's file only (numba's keying; not built): stale after an edit o
 (4) Chosen: a specialized copy per law, inlined, with a cache keyed on both files: the same speed
 and cache behaviour as before laws were pluggable, and the default law's runs stay bit-identical.
 
-Integrator: 3-stage Radau IIA (order 5, L-stable, stiffly accurate) with adaptive substeps and the
-embedded error estimate of Hairer & Wanner (as in scipy's Radau); full Newton on the three stage
-velocities (displacements are linear in them) with a trust region in log|v_rel|.
+Integrator: 3-stage Radau IIA (order 5, L-stable, stiffly accurate) with the embedded error
+estimate of Hairer & Wanner (as in scipy's Radau); full Newton on the three stage velocities
+(displacements are linear in them) with a trust region in log|v_rel|. This file holds one step;
+core/stepper.py the sample loop around it (step size control, steps spanning samples).
 """
 
 from __future__ import annotations

@@ -140,7 +140,7 @@ def _land_py(
     """
     aa, a2, cc, ee = tableau
     rtol, atol_x, atol_w, budget = tol[0], tol[1], tol[2], state[BUDGET]
-    ts, x, w, h = state[STEP_T], state[STEP_X], state[STEP_W], state[H]
+    ts, x, w, h = state[STEP_T], state[STEP_X], state[STEP_W], min(state[H], max_h)
     while ts < target:
         if budget > 0.0 and attempts >= budget:
             state[STEP_T], state[STEP_X], state[STEP_W], state[H] = ts, x, w, h
