@@ -119,25 +119,24 @@ def _read_pending(state: np.ndarray, theta: float) -> tuple[float, float]:
 def _land_py(
     state: np.ndarray,
     target: float,
-    t0: float,
-    v0: float,
-    v1: float,
-    dt: float,
-    rig: np.ndarray,
-    fp: np.ndarray,
-    tol: np.ndarray,
-    tableau: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    line: tuple[float, float, float, float],
     speculate: bool,
-    max_h: float,
-    work: np.ndarray,
-    jac: np.ndarray,
+    run: tuple[
+        np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], float
+    ],
+    scratch: tuple[np.ndarray, np.ndarray],
     attempts: float,
 ) -> tuple[int, float, bool]:
     """Step from STEP_T until `target` is reached (landing on it) or, when `speculate`, passed.
 
-    The band is the line through (t0, v0), (t0 + dt, v1). Returns (status, attempts, passed):
-    passed means a speculative step now pends (PENDING, END_*, STAGES set; STEP_* its start).
+    line: (t0, v0, v1, dt), the band through (t0, v0) and (t0 + dt, v1); run: (rig, fp, tol,
+    tableau, max_h), what every step of the call shares; scratch: (work, jac). Returns (status,
+    attempts, passed): passed means a speculative step now pends (PENDING, END_*, STAGES set;
+    STEP_* its start).
     """
+    t0, v0, v1, dt = line
+    rig, fp, tol, tableau, max_h = run
+    work, jac = scratch
     aa, a2, cc, ee = tableau
     rtol, atol_x, atol_w, budget = tol[0], tol[1], tol[2], state[BUDGET]
     ts, x, w, h = state[STEP_T], state[STEP_X], state[STEP_W], min(state[H], max_h)
@@ -204,11 +203,8 @@ def _advance_py(
     same result as one integrated in one call). state[COMPLETED] counts the samples this call wrote
     to out_x/out_w.
     """
-    tol = np.array([rtol, atol_x, atol_w])
-    tableau = (aa, a2, cc, ee)
-    work = np.empty((8, 3))
-    jac = np.empty((3, 3))
-    max_h = max_span * dt
+    run = (rig, fp, np.array([rtol, atol_x, atol_w]), (aa, a2, cc, ee), max_span * dt)
+    scratch = (np.empty((8, 3)), np.empty((3, 3)))
     attempts = 0.0
     for k in range(band.size):
         v = band[k]
@@ -234,44 +230,14 @@ def _advance_py(
                 state[PENDING] = 0.0
                 state[REDO] = t_prev  # valid up to the previous sample only
         if not math.isnan(state[REDO]):
-            status, attempts, _ = _LAND(
-                state,
-                state[REDO],
-                state[LINE_T0],
-                state[LINE_V0],
-                state[LINE_V1],
-                dt,
-                rig,
-                fp,
-                tol,
-                tableau,
-                False,
-                max_h,
-                work,
-                jac,
-                attempts,
-            )
+            line = (state[LINE_T0], state[LINE_V0], state[LINE_V1], dt)
+            status, attempts, _ = _LAND(state, state[REDO], line, False, run, scratch, attempts)
             if status != OK:
                 return _stop(state, status, dt)
             state[REDO] = math.nan
         speculate = max_span > 1.0 and _on_line(v, t_k, t_prev - dt, state[PREV_BAND], state[BAND], dt)
-        status, attempts, ahead = _LAND(
-            state,
-            t_k,
-            t_prev,
-            state[BAND],
-            v,
-            dt,
-            rig,
-            fp,
-            tol,
-            tableau,
-            speculate,
-            max_h,
-            work,
-            jac,
-            attempts,
-        )
+        line = (t_prev, state[BAND], v, dt)
+        status, attempts, ahead = _LAND(state, t_k, line, speculate, run, scratch, attempts)
         if status != OK:
             return _stop(state, status, dt)
         state[PARTIAL_T0] = math.nan
