@@ -61,6 +61,25 @@ def test_a_kink_after_a_long_line_is_integrated_as_the_reference() -> None:
     assert np.max(np.abs(x - x_ref)) < 1e-5 * np.ptp(x_ref)
 
 
+def test_a_stuck_mass_turns_at_a_corner_of_the_band_in_a_few_steps() -> None:
+    # Stuck on a constant band, then a ramp: the mass's velocity turns to the band's new slope in
+    # about a nanosecond, a transient that the first error estimate of every step from the corner
+    # reports whatever the step size. The refined estimate after a rejection (Hairer & Wanner
+    # IV.8) damps it: the corner's sample takes a few steps, not a descent to nanosecond steps
+    # (ten accepted, twenty rejected, without the refinement), and stays on the reference.
+    band = np.concatenate([np.full(3000, 2e-8), 2e-8 + 1e-10 * np.arange(1, 401)])
+    integrator = RigIntegrator(RigParameters(), float(band[0]), rtol=RTOL)
+    x = [integrator.current().displacement[0]]
+    steps = []
+    for value in band:
+        before = integrator.substeps
+        x.append(integrator.advance(np.array([value])).displacement[0])
+        steps.append(integrator.substeps - before)
+    assert steps[3000] <= 3
+    x_ref = reference(band, np.array(x))
+    assert np.max(np.abs(np.array(x) - x_ref)) < 1e-5 * np.ptp(x_ref)
+
+
 def test_a_band_with_a_kink_at_every_sample_is_stepped_sample_by_sample() -> None:
     # a measured band's noise: no three samples on a line, so no step spans one, and the run is
     # the one with max_step_samples=1 bit for bit

@@ -50,7 +50,8 @@ END_X, END_W = 14, 15  # its end
 STAGES = 16  # its stage increments: x at 16..18, ẋ at 19..21
 LINE_T0, LINE_V0, LINE_V1 = 22, 23, 24  # its band line: through (t0, v0) and (t0 + dt, v1)
 REDO = 25  # NaN, or the time a step found invalid is being integrated again to
-STATE_SIZE = 26
+RETRY = 26  # 1 when the last step attempt was rejected (the next one may refine its error estimate)
+STATE_SIZE = 27
 
 #: A sample is on the band's line when it is within this fraction of the larger of its own and
 #: the line's magnitudes (a profile's ramp computed in floating point is straight to a few ulp).
@@ -119,7 +120,7 @@ def _read_pending(state: np.ndarray, theta: float) -> tuple[float, float]:
 def _land_py(
     state: np.ndarray,
     target: float,
-    line: tuple[float, float, float, float],
+    line: tuple[float, float, float, float, bool],
     speculate: bool,
     run: tuple[
         np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], float
@@ -129,12 +130,13 @@ def _land_py(
 ) -> tuple[int, float, bool]:
     """Step from STEP_T until `target` is reached (landing on it) or, when `speculate`, passed.
 
-    line: (t0, v0, v1, dt), the band through (t0, v0) and (t0 + dt, v1); run: (rig, fp, tol,
+    line: (t0, v0, v1, dt, corner), the band through (t0, v0) and (t0 + dt, v1), and whether its
+    slope changes at t0 (a step from there, rejected, refines its error estimate); run: (rig, fp, tol,
     tableau, max_h), what every step of the call shares; scratch: (work, jac). Returns (status,
     attempts, passed): passed means a speculative step now pends (PENDING, END_*, STAGES set;
     STEP_* its start).
     """
-    t0, v0, v1, dt = line
+    t0, v0, v1, dt, corner = line
     rig, fp, tol, tableau, max_h = run
     work, jac = scratch
     aa, a2, cc, ee = tableau
@@ -149,10 +151,12 @@ def _land_py(
         last = h >= remaining * (1.0 - 1e-12)
         ahead = last and speculate and h > remaining * (1.0 + 1e-9)
         step = h if (ahead or not last) else remaining
+        refine = corner and ts == t0 and state[RETRY] != 0.0
         accepted, x_new, w_new, err = _STEP(
-            x, w, ts, step, t0, dt, v0, v1, rig, fp, rtol, atol_x, atol_w, aa, a2, cc, ee, work, jac
+            x, w, ts, step, t0, dt, v0, v1, rig, fp, rtol, atol_x, atol_w, aa, a2, cc, ee, work, jac, refine
         )
         factor = _factor(err)
+        state[RETRY] = 0.0 if accepted else 1.0
         if not accepted:
             h = step * min(factor, 0.9)
             if h < 1e-15 * max(1.0, abs(ts)):
@@ -230,13 +234,14 @@ def _advance_py(
                 state[PENDING] = 0.0
                 state[REDO] = t_prev  # valid up to the previous sample only
         if not math.isnan(state[REDO]):
-            line = (state[LINE_T0], state[LINE_V0], state[LINE_V1], dt)
+            line = (state[LINE_T0], state[LINE_V0], state[LINE_V1], dt, False)
             status, attempts, _ = _LAND(state, state[REDO], line, False, run, scratch, attempts)
             if status != OK:
                 return _stop(state, status, dt)
             state[REDO] = math.nan
-        speculate = max_span > 1.0 and _on_line(v, t_k, t_prev - dt, state[PREV_BAND], state[BAND], dt)
-        line = (t_prev, state[BAND], v, dt)
+        corner = not _on_line(v, t_k, t_prev - dt, state[PREV_BAND], state[BAND], dt)
+        speculate = max_span > 1.0 and not corner
+        line = (t_prev, state[BAND], v, dt, corner)
         status, attempts, ahead = _LAND(state, t_k, line, speculate, run, scratch, attempts)
         if status != OK:
             return _stop(state, status, dt)
@@ -262,6 +267,7 @@ def _stop(state: np.ndarray, status: int, dt: float) -> int:
     state[PENDING] = 0.0
     state[REDO] = math.nan
     state[PARTIAL_T0] = math.nan
+    state[RETRY] = 0.0
     state[H] = 0.1 * dt
     return status
 
