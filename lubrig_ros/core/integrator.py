@@ -53,7 +53,7 @@ class RigIntegrator:
     initial_velocity: float = 0.0  # m/s
     #: longest step in sample periods: a step spans samples where the band is a line (stepper.py);
     #: a new value applies to the steps begun after it is set
-    max_step_samples: int = 16
+    max_step_samples: int = 256
     _state: np.ndarray = field(init=False, repr=False)
     _rig_array: np.ndarray = field(init=False, repr=False)
     _fp: np.ndarray = field(init=False, repr=False)
