@@ -113,6 +113,10 @@ def _run(name: str) -> int:
     module = importlib.import_module(f"lubrig_ros.nodes.{name}")
     mark(name, "imports done")
     prepare = getattr(module, "prepare", None)
+    # the node's handler module (rclpy, numpy): imported before the gate, where the recorder's
+    # module has not (after it, 0.3 s on the recorder's path to its first match)
+    from .common import interrupt
+
     if prepare is not None and GATE_VARIABLE in os.environ:  # work for the wait at the gate
         prepare()
         mark(name, "prepared")
@@ -121,8 +125,6 @@ def _run(name: str) -> int:
     mark(name, "start gate passed")
     # imported: a Python handler again, which rclpy's signal handling chains to (a SIGINT to a
     # running node is a clean stop, exit status 0: common.interrupt says how)
-    from .common import interrupt
-
     signal.signal(signal.SIGINT, interrupt)
     try:
         status = int(module.main() or 0)
