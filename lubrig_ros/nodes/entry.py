@@ -18,9 +18,9 @@ launcher sends it to a node that has not stopped within its grace period, before
 wedged node leaves the evidence of where it hung.
 
 Start gate (`lubrig rig`): with LUBRIG_START_GATE=FD in its environment, the process imports
-its node module and runs the module's `prepare()`, if it has one (work of the node's start that
-needs neither its configuration nor the graph), then reads one byte from pipe FD before it builds
-anything: it is started while
+its node module and nodes/common.py and runs the module's `prepare()`, if it has one (work of the
+node's start that needs neither its configuration nor the graph), then reads one byte from pipe FD
+before it builds anything: it is started while
 the launcher still checks that the rig's namespace is free (cli/rig_gate.py), so its imports
 overlap that check, and it joins the ROS graph only once the check has passed. End of file
 instead of the byte (the namespace is taken): the process exits 0 without starting the node.

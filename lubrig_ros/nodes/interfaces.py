@@ -43,21 +43,6 @@ def message_class(msgtype: str) -> type:
         raise InputError(f"message type {msgtype!r} is not installed") from exc
 
 
-def load_type_supports() -> None:
-    """Load rclpy's type support of every message and service type of the contract now.
-
-    A process loads each on its first publisher, subscription or service of that type (the type
-    support libraries, about 0.07 s for all): done while `lubrig rig`'s start gate holds a node
-    (its `prepare`; the recorder's fork server, whose workers subscribe to most of them), that
-    time is off the way from the gate to the node's endpoints on the graph.
-    """
-    from rclpy.type_support import check_for_type_support
-
-    types = {t.msgtype for t in contract.documented_topics().values()}
-    for name in sorted(types | {s.srvtype for s in contract.SERVICES}):
-        check_for_type_support(message_class(name))
-
-
 def message_type(cls: type) -> str:
     """The "pkg/msg/Name" of an rclpy message class (message_class's inverse)."""
     return f"{cls.__module__.split('.')[0]}/msg/{cls.__name__}"

@@ -70,13 +70,13 @@ from ..app.plant.session import (
 from ..core.params import ParameterError
 from . import common, scheduling
 from .graph import NamespaceGuard, await_subscriber, band_source_status, delivers_to
-from .interfaces import create_service, create_subscription, load_type_supports, report_callers
+from .interfaces import create_service, create_subscription, report_callers
 from .plant_outputs import PlantOutputs
 
 HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
 #: Stepped modes, until announced: the announcement's checks this often (s), so the run starts
 #: once they pass, not at the heartbeat's next beat (the start-up's critical path).
-ANNOUNCE_POLL_S = 0.02
+ANNOUNCE_POLL_S = 0.05
 #: Wall-clock modes: flow_progress at most this often (with a state_block; belt_drive sends its
 #: lookahead, 200 samples, ahead of it, so 0.1 s of progress leaves 0.1 s of band in hand).
 PROGRESS_PERIOD_S = 0.1
@@ -482,12 +482,11 @@ class Plant(Node):
 
 
 def prepare() -> None:
-    """Before the node is built (nodes/entry.py): numba's CPU target, the messages' type support.
+    """Before the node is built (nodes/entry.py): numba's CPU target.
 
-    Both are then off the node's building (gate to start-up check); the cached kernels need the target.
+    Loading the integrator's cached kernels needs it first; done here, it is off the node's building.
     """
     common.load_numba_target()
-    load_type_supports()
 
 
 def main(args: list[str] | None = None) -> int:
