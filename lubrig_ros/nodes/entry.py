@@ -18,9 +18,9 @@ launcher sends it to a node that has not stopped within its grace period, before
 wedged node leaves the evidence of where it hung.
 
 Start gate (`lubrig rig`): with LUBRIG_START_GATE=FD in its environment, the process imports
-its node module and runs the module's `prepare()`, if it has one (work of the node's start that
-needs neither its configuration nor the graph), then reads one byte from pipe FD before it builds
-anything: it is started while
+its node module and nodes/common.py and runs the module's `prepare()`, if it has one (work of the
+node's start that needs neither its configuration nor the graph), then reads one byte from pipe FD
+before it builds anything: it is started while
 the launcher still checks that the rig's namespace is free (cli/rig_gate.py), so its imports
 overlap that check, and it joins the ROS graph only once the check has passed. End of file
 instead of the byte (the namespace is taken): the process exits 0 without starting the node.
@@ -113,6 +113,10 @@ def _run(name: str) -> int:
     module = importlib.import_module(f"lubrig_ros.nodes.{name}")
     mark(name, "imports done")
     prepare = getattr(module, "prepare", None)
+    # the node's handler module (rclpy, numpy): imported before the gate, where the recorder's
+    # module has not (after it, 0.3 s on the recorder's path to its first match)
+    from .common import interrupt
+
     if prepare is not None and GATE_VARIABLE in os.environ:  # work for the wait at the gate
         prepare()
         mark(name, "prepared")
@@ -121,8 +125,6 @@ def _run(name: str) -> int:
     mark(name, "start gate passed")
     # imported: a Python handler again, which rclpy's signal handling chains to (a SIGINT to a
     # running node is a clean stop, exit status 0: common.interrupt says how)
-    from .common import interrupt
-
     signal.signal(signal.SIGINT, interrupt)
     try:
         status = int(module.main() or 0)

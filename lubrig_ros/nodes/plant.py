@@ -74,6 +74,9 @@ from .interfaces import create_service, create_subscription, report_callers
 from .plant_outputs import PlantOutputs
 
 HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
+#: Stepped modes, until announced: the announcement's checks this often (s), so the run starts
+#: once they pass, not at the heartbeat's next beat (the start-up's critical path).
+ANNOUNCE_POLL_S = 0.05
 #: Wall-clock modes: flow_progress at most this often (with a state_block; belt_drive sends its
 #: lookahead, 200 samples, ahead of it, so 0.1 s of progress leaves 0.1 s of band in hand).
 PROGRESS_PERIOD_S = 0.1
@@ -200,6 +203,7 @@ class Plant(Node):
         else:
             # the heartbeat announces the plant, which starts the run: it must not wait for /clock
             common.steady_timer(self, HEARTBEAT_S, self._heartbeat)
+            self._announce_poll = common.steady_timer(self, ANNOUNCE_POLL_S, self._poll_announcement)
             runs = f"{config.samples} samples per run"
         self.get_logger().info(
             f"plant: mode={self.mode}, {config.sample_rate:g} Hz, {config.rig.coupling_label}, "
@@ -261,6 +265,13 @@ class Plant(Node):
         response.success, response.message = True, self.session.set_paused(bool(request.data))
         self.get_logger().info(f"pause: {response.message}")
         return response
+
+    def _poll_announcement(self) -> None:
+        """Stepped modes, until announced: the heartbeat's checks (it announces once they pass)."""
+        if self._announced:
+            self._announce_poll.cancel()
+            return
+        self._heartbeat()
 
     def _heartbeat(self) -> None:
         """Stepped modes: republish flow_progress (and /clock) so that a late belt_drive sees where we are.

@@ -51,6 +51,7 @@ from lubrig_ros.app.interface.contract import (
 from lubrig_ros.app.interface.contract import select_topics as _select_topics
 from lubrig_ros.app.processes.startup_trace import mark
 from lubrig_ros.bag.errors import BagError
+from lubrig_ros.bag.layout import typestore
 from lubrig_ros.bag.recording import REQUIRED_MATCH_WAIT_S, RecordingSession, required_streams
 from lubrig_ros.bag.writer import BagWriter
 from lubrig_ros.core.errors import InputError
@@ -402,12 +403,15 @@ def _verdict(recorder: Recorder, output: Path) -> int:
 
 
 def prepare() -> None:
-    """While `lubrig rig`'s start gate holds the process (nodes/entry.py): the fork server.
+    """While `lubrig rig`'s start gate holds the process (nodes/entry.py): the fork server, the types.
 
-    It imports rclpy and the workers' modules (about 0.5 s of CPU) and joins no graph; `run`
-    finds it running. It ends with this process, also when the gate stays shut.
+    The fork server imports rclpy and the workers' modules (about 0.5 s of CPU) and joins no
+    graph; `run` finds it running. It ends with this process, also when the gate stays shut. The
+    bag's type store (rosbags' types and lubrig_interfaces', 0.13 s) is built once per process
+    and the writer needs it first: built here, not between the gate and the workers' start.
     """
     start_fork_server()
+    typestore()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
