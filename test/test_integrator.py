@@ -195,6 +195,20 @@ def test_bad_band_velocity_rejected():
         integ.advance([1e-7, float("nan")])
 
 
+def test_a_band_below_the_resolved_velocity_is_integrated_at_rest():
+    # after a band at rest, a subnormal band stalled the stage solve (20 samples in 100 s): values
+    # below the velocity tolerance are integrated as 0 (what they are to the tolerance); the
+    # outputs keep the value given
+    band = np.concatenate([[0.0], np.tile([5e-324, -1e-310, 0.0], 200)])
+    tiny = RigIntegrator(RigParameters(), 0.0, rtol=1e-11)
+    at_rest = RigIntegrator(RigParameters(), 0.0, rtol=1e-11)
+    traj = tiny.advance(band)
+    assert np.array_equal(traj.displacement, at_rest.advance(np.zeros(band.size)).displacement)
+    assert np.array_equal(traj.band_velocity, band)
+    sample = tiny.advance_bounded(5e-324, 10)
+    assert sample is not None and sample.band_velocity == 5e-324
+
+
 def test_reset_returns_to_initial_condition():
     integ = RigIntegrator(RigParameters(convention="paper"), 1e-7)
     first = integ.advance(np.full(100, 1e-7)).displacement.copy()

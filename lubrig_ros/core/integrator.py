@@ -126,7 +126,8 @@ class RigIntegrator:
         The error control resolves velocities down to its absolute tolerance (`_scales`); a band
         slower than that sets a relative velocity the integrator cannot see, and the stage solve
         near v_rel = 0 (where dμ/dv is unbounded) stalls instead of converging. 0 is a band at
-        rest and runs (the mass stays in equilibrium).
+        rest and runs (the mass stays in equilibrium). Later band values that small are integrated
+        as 0 (`_step`).
         """
         resolution = self._scales[1]
         if 0.0 < abs(band_velocity) < resolution:
@@ -234,6 +235,12 @@ class RigIntegrator:
         """The compiled stepper over `band` into out_x/out_w; the samples completed."""
         self._check_span()
         atol_x, atol_w = self._atol
+        unresolved = (band != 0.0) & (np.abs(band) < atol_w)
+        if unresolved.any():
+            # a band at rest in all but name (0 < |v| below the velocity tolerance, a subnormal):
+            # integrated as at rest, which it is to the tolerance; from a mass at rest the stage
+            # solve otherwise stalled (20 samples of 5e-324 m/s in 100 s). Outputs keep the value.
+            band = np.where(unresolved, 0.0, band)
         self._state[BUDGET] = float(max_attempts)
         status = self._stepper(
             self._state,
