@@ -202,19 +202,22 @@ class RigIntegrator:
         band[0] = band_velocity
         if not math.isfinite(band[0]):
             self._band(band)  # raises, naming the value
+        given = band[0]
+        if 0.0 < abs(given) < self._atol[1]:
+            band[0] = 0.0  # integrated at rest, as in _run
         state = self._state
         t_start = state[0] if math.isnan(state[PARTIAL_T0]) else state[PARTIAL_T0]
         self._step(band, max_attempts, out_x, out_w)
         if not math.isnan(state[PARTIAL_T0]):
             return None
-        relative[0] = band[0] - self._coupling * out_w[0]  # rig.relative_velocity, on floats
+        relative[0] = given - self._coupling * out_w[0]  # rig.relative_velocity, on floats
         mu = self._evaluator(relative, self._fp)[0]
         return TrajectorySample(
             float(t_start + self.dt),
             float(out_x[0]),
             float(out_w[0]),
             float(mu[0]),
-            float(band[0]),
+            float(given),
             float(relative[0]),
         )
 
@@ -226,6 +229,12 @@ class RigIntegrator:
         return band
 
     def _run(self, band: np.ndarray, max_attempts: int) -> tuple[np.ndarray, np.ndarray]:
+        unresolved = (band != 0.0) & (np.abs(band) < self._atol[1])
+        if unresolved.any():
+            # a band at rest in all but name (0 < |v| below the velocity tolerance, a subnormal):
+            # integrated as at rest, which it is to the tolerance; from a mass at rest the stage
+            # solve otherwise stalled (20 samples of 5e-324 m/s in 100 s). Outputs keep the value.
+            band = np.where(unresolved, 0.0, band)
         out_x = np.empty(band.size)
         out_w = np.empty(band.size)
         done = self._step(band, max_attempts, out_x, out_w)
@@ -235,12 +244,6 @@ class RigIntegrator:
         """The compiled stepper over `band` into out_x/out_w; the samples completed."""
         self._check_span()
         atol_x, atol_w = self._atol
-        unresolved = (band != 0.0) & (np.abs(band) < atol_w)
-        if unresolved.any():
-            # a band at rest in all but name (0 < |v| below the velocity tolerance, a subnormal):
-            # integrated as at rest, which it is to the tolerance; from a mass at rest the stage
-            # solve otherwise stalled (20 samples of 5e-324 m/s in 100 s). Outputs keep the value.
-            band = np.where(unresolved, 0.0, band)
         self._state[BUDGET] = float(max_attempts)
         status = self._stepper(
             self._state,
