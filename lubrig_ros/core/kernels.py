@@ -282,7 +282,7 @@ def _radau_step_py(  # noqa: C901
             # from h = 1 ms down to 2 ns, twenty rejections in a row. Once more through the
             # filter, from f at y + e, the transient is damped. Only there (a corner, a stuck
             # mass): near a slip onset the refined estimate let steps through that moved the
-            # onset (docs/integrator.md, Method).
+            # onset (docs/integrator.md, "A stuck mass at a corner of the band").
             mu_e, _ = _LAW(vb_now - gamma * (w + e_w), fp)
             f_x = w + e_w
             f_w = (normal * mu_e - damp * (w + e_w) - stiff * (x + e_x)) / mass
