@@ -1,4 +1,5 @@
-"""Sim throughput of the node suite (target: `lubrig rig --case 1` recorded at >= 20x real time).
+"""Sim throughput of the node suite (targets: `lubrig rig --case 1` recorded at >= 50 x real time and
+at >= 1/3 of the core's rate in the same run; start-up < 3 s quiet).
 
     .venv/bin/python bench/bench_sim_rate.py [--short 2] [--long 20] [--case 1] [--repeat 1]
     .venv/bin/python bench/bench_sim_rate.py --blocks 10,50,100,200,500   # block length choice
@@ -105,6 +106,7 @@ def marginal(short: tuple[float, float], long: tuple[float, float]) -> tuple[flo
 
 def bench_rig(args: argparse.Namespace, tmp: Path) -> None:
     modes = [("recorded", True), ("no recorder", False)] if not args.no_bag else [("no recorder", False)]
+    recorded: dict[str, list[float]] = {"marginal": [], "run phase": [], "start-up": []}
     for label, record in modes:
         for rep in range(args.repeat):
             walls, phases, ends = {}, {}, {}
@@ -120,6 +122,10 @@ def bench_rig(args: argparse.Namespace, tmp: Path) -> None:
                 f"marginal {rate:.1f} rig s per wall s, start-up + shutdown {startup:.2f} s"
             )
             inside = (args.long - args.short) / (phases[args.long] - phases[args.short])
+            if record:
+                recorded["marginal"].append(rate)
+                recorded["run phase"].append(inside)
+                recorded["start-up"] += [ends[d][0] for d in (args.short, args.long)]
             print(
                 f"  run phase (first band block -> run complete, node logs): {args.short:g} s in "
                 f"{phases[args.short]:.2f} s, {args.long:g} s in {phases[args.long]:.2f} s -> "
@@ -135,6 +141,12 @@ def bench_rig(args: argparse.Namespace, tmp: Path) -> None:
             )
     rate = core_rate(args.case, args.long)
     print(f"core.run.simulate, case {args.case}, {args.long:g} s: {rate:.1f} rig s per wall s")
+    if recorded["marginal"]:
+        for name in ("marginal", "run phase"):
+            ratios = ", ".join(f"{r / rate:.2f}" for r in recorded[name])
+            print(f"recorded {name} / core: {ratios} (target >= 0.33; >= 50 x: {min(recorded[name]) >= 50})")
+        starts = ", ".join(f"{t:.2f}" for t in recorded["start-up"])
+        print(f"recorded start-up: {starts} s (target < 3 s quiet)")
 
 
 def block_run(length: int, duration: float, tmp: Path) -> float:

@@ -17,6 +17,7 @@ import pytest
 from lubrig_testkit.harness import DomainLease, Probe, ros_env
 from std_msgs.msg import Float64
 
+from lubrig_ros.app.interface import contract
 from lubrig_ros.bag import BagWriter, check_bag, read_arrays
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
@@ -24,6 +25,14 @@ from lubrig_ros.core.wavelet_components import dominant_frequencies
 
 DURATION = 6.0
 SCALE_STEP = 2 ** (1 / 12)  # one wavelet scale step (dj = 1/12 octave)
+WINDOW = 2048  # the analysis's window, samples
+PUBLISH_PERIOD = 0.2  # s
+BLOCK_S = contract.DEFAULT_BLOCK_LENGTH / 1000  # rig s per recorded block (1 kHz)
+#: updates the replayed run must bring: one per publish_period or per block, whichever is longer,
+#: from the block that fills the window to the end of the run
+UPDATES = (
+    math.floor((DURATION - math.ceil(WINDOW / 1000 / BLOCK_S) * BLOCK_S) / max(PUBLISH_PERIOD, BLOCK_S)) + 1
+)
 
 
 @pytest.mark.slow  # a 6 s `lubrig rig` run, then its replay
@@ -71,11 +80,11 @@ def test_recorded_run_replayed_into_analysis_matches_offline(procs, tmp_path: Pa
                 "-p",
                 "use_sim_time:=true",
                 "-p",
-                "window:=2048",
+                f"window:={WINDOW}",
                 "-p",
                 "n_scales:=96",
                 "-p",
-                "publish_period:=0.2",
+                f"publish_period:={PUBLISH_PERIOD}",
                 env=env,
             )
             replay = procs.script(
@@ -97,16 +106,18 @@ def test_recorded_run_replayed_into_analysis_matches_offline(procs, tmp_path: Pa
                 if t.name in ("/lubrig/state_block", "/lubrig/band_velocity_block")
             )
             assert f"published {blocks} messages" in replay.output()  # the blocks as recorded
-            # an update every publish_period of rig time once 2048 samples are in: ~ (6 - 2) / 0.2;
-            # on a loaded machine the analysis may still work through its input after replay ends
+            # replayed at 1x, an update every max(publish_period, block span) of rig time once
+            # WINDOW samples are in (docs/nodes.md "Block length"): one per state block from the
+            # block that fills the window; on a loaded machine the analysis may still work
+            # through its input after replay ends
             values = probe.messages["/lubrig/dominant_frequency"]
-            assert probe.wait_for(lambda: len(values) >= 10, 180), (values, analysis.log())
+            assert probe.wait_for(lambda: len(values) >= UPDATES, 180), (values, analysis.log())
             values = [m.data for m in values]
             assert analysis.running(), analysis.log()  # still running: no crash
         finally:
             procs.stop_all()
             probe.close()
-    assert len(values) >= 10, values
+    assert len(values) >= UPDATES, values
     for f in values:
         assert offline / SCALE_STEP <= f <= offline * SCALE_STEP, (f, offline, values)
     assert math.isclose(values[-1], offline, rel_tol=SCALE_STEP - 1)

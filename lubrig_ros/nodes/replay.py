@@ -32,7 +32,7 @@ from typing import Any
 from lubrig_ros.app.flow import qualified_name
 from lubrig_ros.app.interface.cdr import sample_span
 from lubrig_ros.app.interface.contract import DEFAULT_NAMESPACE, STREAM_QOS, documented_topics, resolve
-from lubrig_ros.app.interface.node_parameters import DEFAULT_FLOW_WINDOW
+from lubrig_ros.app.interface.node_parameters import DEFAULT_REPLAY_FLOW_WINDOW
 from lubrig_ros.app.recording.replay import MAX_RATE, Entry, ReplaySession, check_rate
 from lubrig_ros.app.recording.replay_flow import LosslessFlow
 from lubrig_ros.bag.errors import BagError
@@ -97,7 +97,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--flow-window",
         type=int,
-        default=DEFAULT_FLOW_WINDOW,
+        default=DEFAULT_REPLAY_FLOW_WINDOW,
         metavar="N",
         help="with --lossless: samples sent beyond the slowest subscriber's",
     )

@@ -83,10 +83,15 @@ REALTIME_PRIORITY = _p(
     high=99,
 )
 #: Band samples per BandVelocityBlock (sim); measured: docs/nodes.md "Block length".
-DEFAULT_BLOCK_LENGTH = 250
+DEFAULT_BLOCK_LENGTH = 1000
 MAX_BLOCK_LENGTH = 10_000
-#: Band samples belt_drive may send beyond the slowest participant (sim).
-DEFAULT_FLOW_WINDOW = 1000
+#: Band samples belt_drive may send beyond the slowest participant (sim): four blocks in flight,
+#: so the plant integrates the next block while a consumer's flow_progress is on its way.
+DEFAULT_FLOW_WINDOW = 4 * DEFAULT_BLOCK_LENGTH
+#: Samples a lossless replay sends beyond its slowest subscriber by default: within the block
+#: topics' QoS history for bags of blocks down to 11 samples (realtime bags hold blocks of
+#: DEFAULT_OUTPUT_BLOCK_LENGTH), one block at a time for a sim bag's.
+DEFAULT_REPLAY_FLOW_WINDOW = 1000
 MAX_FLOW_WINDOW = 1_000_000
 #: Node name of the recorder's flow-progress participant, in the rig's namespace (`lubrig rig`
 #: adds it to belt_drive's required_consumers when it records).
