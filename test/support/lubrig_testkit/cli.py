@@ -26,8 +26,15 @@ def lubrig(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.CompletedProcess(["lubrig", *args], code, out.getvalue(), err.getvalue())
 
 
+#: Rig seconds of `start_long_rig`'s run (see its docstring).
+LONG_RIG_S = 36_000.0
+
+
 def start_long_rig(env: dict[str, str], run: Path, new_session: bool = False) -> subprocess.Popen[str]:
-    """`lubrig rig --case 1 --duration 600 --run-dir run --no-report` as a process (pipes for output).
+    """`lubrig rig --case 1 --duration LONG_RIG_S --run-dir run --no-report` as a process (pipes for output).
+
+    LONG_RIG_S of rig time lasts minutes of wall time even at a recorded sim's full rate (about
+    250 x real time on this project's 2-core machines), so the run is still going when the test acts.
 
     Returns once the plant has started (its log says so); AssertionError if the launcher ends or
     nothing starts within 180 s (a guard against a hang).
@@ -44,7 +51,7 @@ def start_long_rig(env: dict[str, str], run: Path, new_session: bool = False) ->
             "--case",
             "1",
             "--duration",
-            "600",
+            f"{LONG_RIG_S:g}",
             "--run-dir",
             str(run),
             "--no-report",
