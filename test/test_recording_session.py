@@ -111,6 +111,44 @@ def test_first_report_waits_for_a_required_stream_only_so_long(tmp_path: Path) -
     session.close()
 
 
+def test_first_report_waits_for_every_stream_with_a_publisher_on_the_graph(tmp_path: Path) -> None:
+    """A lossless replay starts on this report: a reader that has not matched a publisher the
+    graph shows would drop that publisher's first messages (/clock at 0 s, seen beside two hogs)."""
+    session = _session(tmp_path, ["state_block", "/clock", "band_velocity_block"], sim=True)
+    reports: list[tuple[int, int, int]] = []
+    session.on_progress = lambda seg, n, t: reports.append((seg, n, t))
+    clock, band = _index(session, "/clock"), _index(session, "band_velocity_block")
+    session.lagging(0, [clock])
+    session.lagging(1, [band])
+    session.matched([_index(session, "state_block")])
+    assert reports == []  # /clock's and the band's readers lag their publishers
+    session.lagging(0, [])
+    session.heartbeat()
+    assert reports == []  # the band's still lags (another worker)
+    session.lagging(1, [])
+    assert reports == [(0, 0, 0)]
+    session.lagging(1, [band])  # after the first report: no second one
+    assert reports == [(0, 0, 0)] and session.ready_lagging == ()
+    session.close()
+
+
+def test_first_report_waits_for_a_lagging_stream_only_so_long(tmp_path: Path) -> None:
+    """A publisher that never matches (another type or QoS) must not hold the run: named, then reported."""
+    session = _session(tmp_path, ["state_block", "/clock"], sim=True)
+    reports: list[tuple[int, int, int]] = []
+    session.on_progress = lambda seg, n, t: reports.append((seg, n, t))
+    session.lagging(0, [_index(session, "/clock")])
+    session.matched([_index(session, "state_block")])
+    session.heartbeat()
+    assert reports == []
+    assert session.state_matched_at is not None
+    session.state_matched_at -= REQUIRED_MATCH_WAIT_S
+    session.heartbeat()
+    assert reports == [(0, 0, 0)]
+    assert session.ready_lagging == ("/clock",)
+    session.close()
+
+
 def test_a_lost_block_is_a_gap_named_in_the_problems_and_accounting_json(tmp_path: Path) -> None:
     session = _session(tmp_path, ["state_block"], sim=False)
     reports: list[tuple[int, int, int]] = []

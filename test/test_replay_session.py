@@ -129,6 +129,20 @@ def firsts(s: ReplaySession, now: float) -> list[int]:
     return out
 
 
+def test_lossless_sends_no_message_of_any_topic_before_every_first_report() -> None:
+    """A /clock before the first state block is held too: the subscriber's first report says its
+    readers have matched, and a message sent before that could reach a reader that drops it."""
+    flow = LosslessFlow("/lubrig_replay", ("/a",), window=30)
+    clock = Entry("/clock", T0, bytes([7]))
+    s = ReplaySession([clock, *blocks(0, 2)], origin_ns=T0, now=0.0, rate=1000.0, flow=flow)
+    wait = s.next(1.0)
+    assert isinstance(wait, Wait) and wait.reason == "waiting for the first flow_progress of /a"
+    flow.report("/a", 0, 0)
+    action = s.next(1.0)
+    assert isinstance(action, Publish) and action.entry is clock
+    assert firsts(s, 1.0) == [0, 10]
+
+
 def test_lossless_sends_no_further_than_the_window_beyond_the_slowest_subscriber() -> None:
     flow = LosslessFlow("/lubrig_replay", ("/a", "/b"), window=30)
     s = ReplaySession(blocks(0, 10), origin_ns=T0, now=0.0, rate=1000.0, flow=flow)

@@ -46,8 +46,9 @@ WALL_CLOCK_NS = 100_000_000 * 1_000_000_000
 #: The flow-progress heartbeat: the latest value again after this long without a report (s).
 HEARTBEAT_S = 0.2
 #: s after state_block's reader has matched that the first report waits for the required streams'
-#: readers; then it is sent without them, named in `ready_without` (nothing publishes them yet:
-#: the run must not wait for ever on a stream that may never come).
+#: readers and for the readers of streams with a publisher on the graph; then it is sent without
+#: them, named in `ready_without` and `ready_lagging` (nothing publishes them yet, or a publisher
+#: of another type or QoS that never matches: the run must not wait for ever).
 REQUIRED_MATCH_WAIT_S = 5.0
 CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 
@@ -139,6 +140,9 @@ class RecordingSession:
         self.matched_streams: set[str] = set()  # streams whose reader has matched a publisher
         self.state_matched_at: float | None = None  # monotonic s: state_block's reader matched
         self.ready_without: tuple[str, ...] = ()  # required streams the first report did not wait for
+        #: per worker: streams with a publisher on the graph that their reader has not matched yet
+        self.lagging_streams: dict[int, set[str]] = {}
+        self.ready_lagging: tuple[str, ...] = ()  # lagging streams the first report did not wait for
         self.use_sim_time = use_sim_time
         self.run_config = run_config
         self.config_written = False
@@ -179,22 +183,38 @@ class RecordingSession:
                 self._write(stream, t, data)
 
     def matched(self, streams: Sequence[int]) -> None:
-        """These streams' subscriptions have matched a publisher; report (0, 0) once all that count have.
+        """These streams' subscriptions have matched a publisher; report (0, 0) once ready.
 
-        Those that count: state_block and every `required` stream. A publisher's own count of
-        matched subscriptions is half of a match: its reader drops what arrives before the reader
-        has matched the writer in turn (a volatile reader starts at the writer's next sample), so
-        belt_drive and the plant send nothing before this report.
+        Ready: state_block and every `required` stream have matched a publisher, and no stream
+        has a publisher on the graph that its reader has not matched (`lagging`). A publisher's
+        own count of matched subscriptions is half of a match: its reader drops what arrives
+        before the reader has matched the writer in turn (a volatile reader starts at the
+        writer's next sample), so belt_drive, the plant and a lossless replay send nothing before
+        this report.
         """
         self.matched_streams.update(self.streams[i].spec.name for i in streams)
         if self.state_block in self.matched_streams and self.state_matched_at is None:
             self.state_matched_at = time.monotonic()
-        if self.progress is None and self.state_matched_at is not None and not self.unmatched_required():
+        self._report_if_ready()
+
+    def lagging(self, worker: int, streams: Sequence[int]) -> None:
+        """All of worker `worker`'s streams whose reader has not matched every publisher on the graph."""
+        self.lagging_streams[worker] = {self.streams[i].spec.name for i in streams}
+        self._report_if_ready()
+
+    def _report_if_ready(self) -> None:
+        if self.progress is not None or self.state_matched_at is None:
+            return
+        if not self.unmatched_required() and not self.unmatched_publishers():
             self.report_progress(0, 0)  # subscribed and matched both ways: the run may start
 
     def unmatched_required(self) -> list[str]:
         """Required streams whose reader has not matched a publisher yet."""
         return [name for name in self.required if name not in self.matched_streams]
+
+    def unmatched_publishers(self) -> list[str]:
+        """Streams with a publisher on the graph that their reader has not matched yet (sorted)."""
+        return sorted(set().union(*self.lagging_streams.values()))
 
     def start(self) -> None:
         """Without use_sim_time the run configuration is written now (receive-time log times)."""
@@ -290,11 +310,12 @@ class RecordingSession:
 
         Before the first report: once REQUIRED_MATCH_WAIT_S have passed since state_block's
         reader matched, the first report, without the required streams still unmatched
-        (`ready_without` names them).
+        (`ready_without` names them) and the streams still lagging (`ready_lagging`).
         """
         since = None if self.state_matched_at is None else time.monotonic() - self.state_matched_at
         if self.progress is None and since is not None and since >= REQUIRED_MATCH_WAIT_S:
             self.ready_without = tuple(self.unmatched_required())
+            self.ready_lagging = tuple(self.unmatched_publishers())
             self.report_progress(0, 0)
             return
         if self.progress is None or time.monotonic() - self.last_progress < HEARTBEAT_S:

@@ -136,12 +136,14 @@ class Recorder:
         self.session.on_progress = self.progress_node.publish
 
     def _message(self, message: PoolMessage) -> None:
-        """A worker's "data" batch or "matched" report (anything else is ignored)."""
-        kind, _wid, payload = message
+        """A worker's "data" batch, "matched" or "lagging" report (anything else is ignored)."""
+        kind, wid, payload = message
         if kind == "data":
             self.session.handle(payload)
         elif kind == "matched":
             self.session.matched(payload)
+        elif kind == "lagging":
+            self.session.lagging(wid, payload)
 
     def start_workers(self, timeout: float = 90.0, should_stop: Sequence[bool] = (False,)) -> bool:
         """Start the subscriber processes; see WorkerPool.start."""
@@ -191,6 +193,12 @@ class Recorder:
                     f"no publisher of required stream(s) {', '.join(session.ready_without)} "
                     f"{REQUIRED_MATCH_WAIT_S:g} s after state_block's: reporting ready without them "
                     "(their first samples may be lost)"
+                )
+            if waiting and session.ready_lagging:
+                self.warning(
+                    f"stream(s) {', '.join(session.ready_lagging)} not matched to every publisher on "
+                    f"the graph {REQUIRED_MATCH_WAIT_S:g} s after state_block's (a publisher of another "
+                    "type or QoS?): reporting ready without them (their first samples may be lost)"
                 )
             session.flush_if_due(self.flush_interval)
             self.pool.check_alive()

@@ -9,8 +9,10 @@ spin_once loop, and ships (stream index, receive time, bytes) batches to the rec
 only writer of the bag: block messages at once, others every BATCH_PERIOD_S.
 
 Messages on the pool's queue: ("ready", wid, None) once a worker has subscribed, ("matched", wid,
-[stream index]) once a subscription has a publisher, ("data", wid, [(stream, recv_ns, bytes)]),
-and ("done", wid, None) after its last batch.
+[stream index]) once a subscription has a publisher, ("lagging", wid, [stream index]) whenever the
+set of its streams changes that have more publishers on the graph than their reader has matched
+(the graph and the reader learn of a publisher each on its own), ("data", wid, [(stream, recv_ns,
+bytes)]), and ("done", wid, None) after its last batch.
 """
 
 from __future__ import annotations
@@ -142,6 +144,7 @@ def _worker(
     executor.add_node(node)
     out.put(("ready", wid, None))
     unmatched = set(range(len(subs)))
+    lagging: list[int] = []  # streams with a publisher on the graph their reader has not matched
     next_ship = time.monotonic() + BATCH_PERIOD_S
     next_check = 0.0
     try:
@@ -162,6 +165,14 @@ def _worker(
                 if matched:
                     unmatched.difference_update(matched)
                     out.put(("matched", wid, [streams[i] for i in matched]))
+                now_lagging = [
+                    streams[i]
+                    for i, sub in enumerate(subs)
+                    if node.count_publishers(sub.topic_name) > sub.get_publisher_count()
+                ]
+                if now_lagging != lagging:
+                    lagging = now_lagging
+                    out.put(("lagging", wid, lagging))
         # what arrived before the stop was seen: take it, then ship the rest
         for _ in range(1000):
             before = len(batch)

@@ -45,6 +45,8 @@ LEGACY_STATE = "sensor_msgs/msg/JointState"
 STATE_BLOCK = "lubrig_interfaces/msg/RigStateBlock"
 #: The replay's node name (its services and parameters are under /lubrig_replay/).
 NODE_NAME = "lubrig_replay"
+#: Longest wait, after the last message, for the subscribers' acknowledgements (s).
+DELIVERY_WAIT_S = 5.0
 #: Longest --wait-for-subscribers, s.
 MAX_WAIT_S = 3600.0
 #: How the player is driven while it plays (the epilog of --help).
@@ -278,13 +280,35 @@ def run(args: argparse.Namespace, bag: Bag | None = None) -> int:
     )
     try:
         player.play()
-        time.sleep(0.5)  # let reliable delivery of the last messages complete
+        if not stop[0]:
+            _await_delivery([*pubs.values(), *([clock_pub] if clock_pub is not None else [])])
     finally:
         spinner.stop()
         node.destroy_node()
         rclpy.shutdown()
     print(f"replay: published {session.published} messages", flush=True)
     return 0
+
+
+def _await_delivery(publishers: Sequence[Any]) -> None:
+    """Wait until every reliable subscriber has acknowledged what was published (DELIVERY_WAIT_S at most).
+
+    A publisher destroyed with samples unacknowledged drops them: a subscriber that had not yet
+    taken the last messages would never get them. One line names the topics still unacknowledged.
+    """
+    from rclpy.duration import Duration
+
+    deadline = time.monotonic() + DELIVERY_WAIT_S
+    late = [
+        p.topic_name
+        for p in publishers
+        if not p.wait_for_all_acked(Duration(seconds=max(0.0, deadline - time.monotonic())))
+    ]
+    if late:
+        print(
+            f"replay: not acknowledged by every subscriber within {DELIVERY_WAIT_S:g} s: {', '.join(late)}",
+            flush=True,
+        )
 
 
 def main(argv: Sequence[str] | None = None) -> int:

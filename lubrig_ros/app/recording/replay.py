@@ -234,8 +234,11 @@ class ReplaySession:
         return True
 
     def _held(self, entry: Entry) -> str:
-        if self.flow is None or entry.span is None:
+        """Lossless: no message before every subscriber's first report, no block beyond the window."""
+        if self.flow is None:
             return ""
+        if entry.span is None:
+            return self.flow.unheard() or ""
         return self.flow.hold(entry.span) or ""
 
     def _advance(self, entry: Entry) -> None:

@@ -78,11 +78,21 @@ class LosslessFlow:
         self.stale.pop(participant, None)
         return self.gate.report(participant, segment, samples) or new
 
+    def unheard(self) -> str | None:
+        """Why nothing may be sent yet: a subscriber has not reported once (None: all have).
+
+        Its first report says that its readers have matched (the recorder's does: its readers of
+        every stream with a publisher on the graph); a message of any topic sent before it could
+        arrive at a reader not yet matched, which drops it.
+        """
+        missing = [name for name in self.subscribers if name not in self.heard]
+        return f"waiting for the first flow_progress of {', '.join(missing)}" if missing else None
+
     def hold(self, span: SampleSpan) -> str | None:
         """Why the block of `span` may not be sent yet, or None (it may)."""
-        missing = [name for name in self.subscribers if name not in self.heard]
-        if missing:
-            return f"waiting for the first flow_progress of {', '.join(missing)}"
+        unheard = self.unheard()
+        if unheard:
+            return unheard
         if self.gate is None or span.segment != self.segment or span.first_index != self.reach:
             behind = self._behind(self.reach)
             if behind:
