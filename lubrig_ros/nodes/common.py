@@ -269,8 +269,9 @@ def end_when_acked(publishers: list[Any], wait: float) -> None:
     """End the node as on a Ctrl-C (spin_node, its exit status) once readers have the last samples.
 
     The samples left at publish; the writers stay for a retransmit until the readers acknowledge
-    them, which RTPS readers do in answer to a writer heartbeat (seen: often not within 1 s, so
-    the node usually ends `wait` s after the run). Polled without waiting: a waiting call keeps
+    them, which RTPS readers do in answer to a writer heartbeat (every 0.25 s with the rig's
+    Fast DDS profile, config/fastdds_localhost.xml; 3 s, Fast DDS's default, without it, and the
+    node then usually ends `wait` s after the run). Polled without waiting: a waiting call keeps
     the GIL from the node's other threads for its whole timeout.
     """
     pending = list(publishers)
