@@ -91,13 +91,12 @@ def test_nodes_in_a_namespace_with_a_relative_remap(procs, probe):
     result = probe.set_parameter(f"{NS[1:]}/plant", "rig.damping_ratio", 0.05)
     assert result.successful, result.reason
 
-    # every block reaches the probe before the writers stop: a reliable sample lost on the way is
-    # sent again only when the writer's heartbeat draws the reader's NACK (Fast DDS: every 3 s)
-    def samples(topic: str, field: str) -> int:
-        return sum(len(getattr(b, field)) for b in probe.messages[topic])
-
-    assert probe.wait_for(lambda: samples(BAND, "band_velocity") >= n, 20), samples(BAND, "band_velocity")
-    assert probe.wait_for(lambda: samples(f"{NS}/state_block", "displacement") >= n + 1, 20)
+    # every block reaches the probe before the writers stop: a reliable sample lost on the way
+    # comes again only when the reader answers the writer's next heartbeat (docs/nodes.md)
+    assert probe.wait_for(lambda: probe.samples(BAND, "band_velocity") >= n, 20), probe.samples(
+        BAND, "band_velocity"
+    )
+    assert probe.wait_for(lambda: probe.samples(f"{NS}/state_block", "displacement") >= n + 1, 20)
     codes = procs.stop_all()
     ref = simulate(load_case(1).with_overrides(duration=DURATION))
     x = np.array([m.data for m in probe.messages[f"{NS}/displacement"]])

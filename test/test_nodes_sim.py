@@ -94,6 +94,19 @@ def test_sim_case1_equals_core_simulate(procs, probe):
     # sim publishes no per-sample topic unless asked (scalar_topics)
     for name in ("displacement", "velocity", "friction_coefficient", "state"):
         assert not probe.node.get_publishers_info_by_topic(f"{ns}/{name}"), name
+    # the streams the probe does not pace reach it before the writers stop: a reliable sample
+    # lost on the way comes again only when the reader answers the writer's next heartbeat
+    band_name = f"{ns}/band_velocity_block"
+    assert probe.wait_for(lambda: probe.samples(band_name, "band_velocity") >= n, 20), probe.samples(
+        band_name, "band_velocity"
+    )
+    plant_done = lambda: any(  # noqa: E731
+        m.participant == "/lubrig/plant" and m.samples == n + 1 for m in probe.messages[f"{ns}/flow_progress"]
+    )
+    assert probe.wait_for(plant_done, 20)
+    assert probe.wait_for(
+        lambda: any(m.clock.sec + 1e-9 * m.clock.nanosec == DURATION for m in probe.messages["/clock"]), 20
+    )
     codes = procs.stop_all()
 
     ref = simulate(load_case(1).with_overrides(duration=DURATION))

@@ -510,6 +510,10 @@ class Probe:
             time.sleep(0.02)
         return bool(predicate())
 
+    def samples(self, topic: str, field: str) -> int:
+        """Samples received on a block topic: the lengths of every message's `field`, summed."""
+        return sum(len(getattr(m, field)) for m in self.messages[topic])
+
     def wait_for_count(self, topic: str, count: int, timeout: float) -> bool:
         """Wait until at least count messages arrived on topic."""
         return self.wait_for(lambda: len(self.messages[topic]) >= count, timeout)
