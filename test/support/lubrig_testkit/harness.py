@@ -62,6 +62,9 @@ BIN = Path(PYTHON).parent
 # 10..99: clear of the default domain 0 and of ids whose DDS ports fall in Linux's ephemeral range
 DOMAIN_IDS = range(10, 100)
 LOCK_DIR = Path(tempfile.gettempdir()) / "lubrig_ros_domains"
+#: s after its state_block subscription matched that a probe's consumer waits for its other
+#: subscriptions to match the publishers the graph shows (then it reports ready all the same)
+LAG_WAIT_S = 5.0
 
 
 def wait_until(
@@ -453,7 +456,9 @@ class Probe:
         Records every RigStateBlock in ``messages[<namespace>/<topic>]`` and reports on
         <namespace>/flow_progress (participant: this node's fully qualified name, returned; give
         it to belt_drive's ``required_consumers``): samples 0 once the subscription has matched
-        the plant's publisher, then after every block taken, and every 0.2 s as a heartbeat.
+        the plant's publisher and no subscription of the probe lags (`lagging`; LAG_WAIT_S at
+        most), then after every
+        block taken, and every 0.2 s as a heartbeat.
         `delay`: seconds slept in every block callback (a deliberately slow consumer).
         """
         from lubrig_interfaces.msg import FlowProgress, RigStateBlock
@@ -487,15 +492,32 @@ class Probe:
 
         sub = self.node.create_subscription(RigStateBlock, block_name, on_block, qos)
 
+        matched_at: list[float] = []
+
         def heartbeat() -> None:
             with lock:
                 if not state["ready"] and sub.get_publisher_count() > 0:
-                    state["ready"] = True
+                    matched_at[:] = matched_at or [time.monotonic()]
+                    # a subscription that can never match (another QoS) is not waited for for ever
+                    state["ready"] = not self.lagging() or time.monotonic() - matched_at[0] > LAG_WAIT_S
                 if state["ready"]:
                     report()
 
         self.node.create_timer(0.2, heartbeat)
         return participant
+
+    def lagging(self) -> list[str]:
+        """The probe's subscriptions that have matched fewer publishers than the graph shows.
+
+        A reader drops what a writer sends before the reader has matched it (its half of the
+        match; volatile: it is not sent again), so a consumer reports ready only once none lags
+        (the recorder's rule, docs/recording.md).
+        """
+        return [
+            s.topic_name
+            for s in self.node.subscriptions
+            if s.get_publisher_count() < self.node.count_publishers(s.topic_name)
+        ]
 
     def publisher(self, topic: str, msg_type: type, qos: Any) -> Any:
         """A publisher of the probe node."""
