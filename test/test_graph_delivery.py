@@ -80,3 +80,33 @@ def test_subscriptions_that_cannot_match_are_not_waited_for(writer: Probe, ros_d
     finally:
         other.close()
         typed.close()
+
+
+def test_a_use_sim_time_clock_reader_does_not_count_as_taking_every_clock(writer: Probe, ros_domain: int):
+    """A node with use_sim_time holds a best-effort /clock reader (rclpy's TimeSource). To a
+    reliable /clock publisher it is no subscriber that takes every sample: neither `delivers_to`
+    nor a lossless replay's wait takes it for the recorder's /clock reader, which a worker node
+    of the same name prefix holds; that reliable reader, once matched, does count."""
+    from rclpy.parameter import Parameter
+    from rosgraph_msgs.msg import Clock
+
+    from lubrig_ros.nodes.replay import subscribed
+
+    clock_qos = qos_profile(contract.documented_topics()["/clock"].qos)
+    pub = writer.node.create_publisher(Clock, "/clock", clock_qos)
+    timed = Probe(ros_domain, "recorder")
+    worker = Probe(ros_domain, "recorder_w0")
+    try:
+        timed.node.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
+        wait_until(lambda: pub.get_subscription_count() == 1, 60, "the time source's reader matched")
+        assert matched_every_subscription(writer.node, pub)
+        assert subscribed(writer.node, [pub], lossless=False)  # a subscriber, all it may take
+        assert not subscribed(writer.node, [pub], lossless=True)
+        assert not delivers_to(writer.node, [pub], "recorder")
+        worker.subscribe("/clock", Clock, clock_qos)
+        wait_until(lambda: delivers_to(writer.node, [pub], "recorder"), 60, "delivers_to")
+        assert pub.get_subscription_count() == 2
+        assert subscribed(writer.node, [pub], lossless=True)
+    finally:
+        worker.close()
+        timed.close()

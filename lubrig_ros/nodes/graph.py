@@ -24,7 +24,7 @@ from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 from rclpy.node import Node
-from rclpy.qos import QoSCompatibility, qos_check_compatible
+from rclpy.qos import QoSCompatibility, ReliabilityPolicy, qos_check_compatible
 
 from ..app.interface.diagnostics import Status
 from ..app.processes.discovery import (
@@ -110,13 +110,28 @@ def band_source_status(node: Node, topics: Iterable[str], source: str, hardware_
     )
 
 
-def subscribed_by(node: Node, topics: Iterable[str], prefix: str) -> bool:
-    """True when every topic has a discovered subscription from a node named prefix*."""
-    if not prefix:
-        return True
+def takes_every_sample(subscription: Any, publisher: Any) -> bool:
+    """True when a discovered subscription (graph info) can get every sample the publisher sends.
+
+    For a reliable publisher only a reliable subscription can: a best-effort one takes what
+    reaches it. Each node with use_sim_time holds such a best-effort /clock reader (rclpy's
+    TimeSource); it is no sign that the node records /clock.
+    """
+    reliable = ReliabilityPolicy.RELIABLE
+    return publisher.qos_profile.reliability != reliable or subscription.qos_profile.reliability == reliable
+
+
+def subscribed_by(node: Node, publishers: Iterable[Any], prefix: str) -> bool:
+    """True when every publisher's topic has a subscription from a node named prefix* that takes every sample.
+
+    Discovered subscriptions only (`takes_every_sample`); with an empty prefix, from any node.
+    """
     return all(
-        any(info.node_name.startswith(prefix) for info in node.get_subscriptions_info_by_topic(t))
-        for t in topics
+        any(
+            info.node_name.startswith(prefix) and takes_every_sample(info, p)
+            for info in node.get_subscriptions_info_by_topic(p.topic_name)
+        )
+        for p in publishers
     )
 
 
@@ -159,12 +174,13 @@ def matched_every_subscription(node: Node, publisher: Any) -> bool:
 def delivers_to(node: Node, publishers: Sequence[Any], prefix: str) -> bool:
     """True when a sample published now on every publisher reaches a node named prefix*.
 
-    Its subscription to each topic is discovered and each publisher has matched every
-    subscription discovered (`matched_every_subscription`: a count of matched readers alone
-    could be another node's). With an empty prefix: every discovered subscription matched.
+    Its subscription to each topic is discovered and takes every sample (`subscribed_by`), and
+    each publisher has matched every subscription discovered (`matched_every_subscription`: a
+    count of matched readers alone could be another node's). With an empty prefix: every
+    discovered subscription matched, whoever holds it, and none need be there.
     """
-    names = [p.topic_name for p in publishers]
-    return subscribed_by(node, names, prefix) and all(matched_every_subscription(node, p) for p in publishers)
+    matched = all(matched_every_subscription(node, p) for p in publishers)
+    return matched and (not prefix or subscribed_by(node, publishers, prefix))
 
 
 def await_subscriber(

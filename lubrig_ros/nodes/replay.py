@@ -38,7 +38,7 @@ from lubrig_ros.app.recording.replay_flow import LosslessFlow
 from lubrig_ros.bag.errors import BagError
 from lubrig_ros.bag.reader import Bag
 from lubrig_ros.core.errors import InputError
-from lubrig_ros.nodes.graph import matched_every_subscription
+from lubrig_ros.nodes.graph import matched_every_subscription, subscribed_by
 from lubrig_ros.nodes.script import run_script
 
 LEGACY_STATE = "sensor_msgs/msg/JointState"
@@ -112,7 +112,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         type=float,
         default=0.0,
         metavar="S",
-        help="wait up to S seconds until every replayed topic has a subscriber (each one discovered matched)",
+        help=(
+            "wait up to S seconds until every replayed topic has a subscriber (each one discovered "
+            "matched; with --lossless a reliable one)"
+        ),
     )
 
 
@@ -264,9 +267,9 @@ def run(args: argparse.Namespace, bag: Bag | None = None) -> int:
         )
     spinner = Spinner(node)
     deadline = time.monotonic() + args.wait_for_subscribers
+    published = [*pubs.values(), *([clock_pub] if clock_pub is not None else [])]
     while time.monotonic() < deadline and not stop[0]:
-        # a subscriber on every topic, and each discovered one matched (nodes/graph.py says why)
-        if all(p.get_subscription_count() > 0 and matched_every_subscription(node, p) for p in pubs.values()):
+        if subscribed(node, published, lossless=flow is not None):
             break
         time.sleep(0.05)
     with player.cond:
@@ -281,13 +284,24 @@ def run(args: argparse.Namespace, bag: Bag | None = None) -> int:
     try:
         player.play()
         if not stop[0]:
-            _await_delivery([*pubs.values(), *([clock_pub] if clock_pub is not None else [])])
+            _await_delivery(published)
     finally:
         spinner.stop()
         node.destroy_node()
         rclpy.shutdown()
     print(f"replay: published {session.published} messages", flush=True)
     return 0
+
+
+def subscribed(node: Any, publishers: Sequence[Any], lossless: bool) -> bool:
+    """A subscriber on every topic, and each discovered one matched (nodes/graph.py says why).
+
+    Lossless: on every topic a subscriber that takes every sample (a reliable one on a reliable
+    topic): a node's use_sim_time /clock reader is best effort and does not record /clock.
+    """
+    if lossless and not subscribed_by(node, publishers, ""):
+        return False
+    return all(p.get_subscription_count() > 0 and matched_every_subscription(node, p) for p in publishers)
 
 
 def _await_delivery(publishers: Sequence[Any]) -> None:
