@@ -60,6 +60,7 @@ def publish(args: argparse.Namespace) -> int:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
+    from lubrig_ros.nodes.graph import matched_every_subscription, takes_every_sample
     from lubrig_ros.nodes.interfaces import message_class, qos_profile
 
     rclpy.init(args=[])
@@ -92,7 +93,14 @@ def publish(args: argparse.Namespace) -> int:
     while time.monotonic() < deadline:
         if executor is not None:
             executor.spin_once(timeout_sec=0.05)
-        subscribed = all(p.get_subscription_count() >= args.subscribers for p in waited)
+        # subscribers that take every sample (a use_sim_time node's best-effort /clock reader
+        # does not), each one discovered matched (nodes/graph.py)
+        subscribed = all(
+            sum(takes_every_sample(i, p) for i in node.get_subscriptions_info_by_topic(p.topic_name))
+            >= args.subscribers
+            and matched_every_subscription(node, p)
+            for p in waited
+        )
         if subscribed and (executor is None or "samples" in consumer):
             break
         if executor is None:
