@@ -17,7 +17,7 @@ from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
-from lubrig_interfaces.msg import FlowProgress, RigStateBlock
+from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress, RigStateBlock
 from lubrig_ros.app.interface.contract import resolve, select_topics
 from lubrig_ros.bag.reader import RIG_STATE_FIELDS
 from lubrig_ros.bag.recording import REQUIRED_MATCH_WAIT_S, SIM_HOLD_NS, WALL_CLOCK_NS, RecordingSession
@@ -184,6 +184,62 @@ def test_the_plant_s_flow_progress_announces_samples_not_yet_taken(tmp_path: Pat
     assert session.behind() == 200  # the plant's announcement counts, another participant's does not
     session.handle([(k, 4, _block(100, 200))])
     assert session.behind() == 0
+    session.close()
+
+
+def _band(first: int, n: int, segment: int = 0) -> bytes:
+    """Band samples with indices first … first + n − 1 (band sample k = index + 1 makes state sample k)."""
+    msg = BandVelocityBlock(sample_period=1e-3, first_sample_index=first, segment=segment)
+    msg.header.stamp = _stamp((first + 1) * MS)
+    msg.band_velocity = [0.01] * n
+    return serialize_message(msg)
+
+
+def _rig_session(tmp_path: Path) -> tuple[RecordingSession, list[tuple[int, int]], int, int, int]:
+    """A sim rig's recorder (progress per block, band and state required), reported ready."""
+    session = _session(tmp_path, ["state_block", "band_velocity_block", "flow_progress"], sim=False)
+    session.required = (resolve(NS, "state_block"), resolve(NS, "band_velocity_block"))
+    reports: list[tuple[int, int]] = []
+    session.on_progress = lambda seg, n, t: reports.append((seg, n))
+    k, b, p = (_index(session, n) for n in ("state_block", "band_velocity_block", "flow_progress"))
+    session.matched([k, b])
+    assert reports == [(0, 0)]
+    return session, reports, k, b, p
+
+
+def test_a_rig_s_recorder_reports_only_samples_it_holds_of_band_and_state(tmp_path: Path) -> None:
+    """Band sample k becomes state sample k: with the band's second block lost on the way, the
+    recorder reports no state sample beyond what the band it holds made, until the copy comes."""
+    session, reports, k, b, _p = _rig_session(tmp_path)
+    session.handle([(b, 1, _band(0, 100)), (k, 2, _block(0, 101))])
+    assert reports[-1] == (0, 101)  # state samples 0 … 100: the initial state and band 0 … 99
+    session.handle([(k, 3, _block(101, 100))])  # its band block (indices 100 … 199) not here
+    assert reports[-1] == (0, 101)
+    session.handle([(b, 4, _band(100, 100))])  # sent again after the writer's heartbeat
+    assert reports[-1] == (0, 201)
+    session.close()
+    assert session.problems() == []
+
+
+def test_a_rig_s_recorder_counts_a_band_tail_the_plant_took_and_it_lacks_as_a_gap(tmp_path: Path) -> None:
+    """The plant's FlowProgress says which band samples exist: one the bag lacks at the end is a gap."""
+    session, reports, k, b, p = _rig_session(tmp_path)
+    announce = FlowProgress(participant=resolve(NS, "plant"), segment=0, samples=201)
+    session.handle([(b, 1, _band(0, 100)), (k, 2, _block(0, 201)), (p, 3, serialize_message(announce))])
+    assert reports[-1] == (0, 101)
+    assert session.behind() == 100  # band indices 100 … 199
+    session.close()
+    (line,) = session.problems()
+    assert line.startswith(f"{resolve(NS, 'band_velocity_block')}: 100 samples missing in 1 gap(s)")
+
+
+def test_a_recorder_without_the_band_required_reports_state_alone(tmp_path: Path) -> None:
+    """A lossless replay's recorder (nothing required): the state blocks alone, as before."""
+    session = _session(tmp_path, ["state_block", "band_velocity_block"], sim=False)
+    reports: list[tuple[int, int]] = []
+    session.on_progress = lambda seg, n, t: reports.append((seg, n))
+    session.handle([(_index(session, "state_block"), 1, _block(0, 201))])
+    assert reports == [(0, 201)]
     session.close()
 
 

@@ -51,6 +51,20 @@ def qualified_name(namespace: str, name: str) -> str:
         raise ParameterError(f"required consumer {name!r} is not valid: {exc}") from None
 
 
+def band_samples_of_state(state_samples: int) -> int:
+    """Band samples of a segment (indices 0 … b − 1) that its first `state_samples` state samples took.
+
+    Band sample k = 1, 2, … travels with index k − 1 and becomes state sample k; state sample 0
+    is the initial state, taken from no band sample. So s ≥ 1 state samples took s − 1.
+    """
+    return max(0, state_samples - 1)
+
+
+def state_samples_of_band(band_samples: int) -> int:
+    """State samples of a segment that its first `band_samples` band samples make: b + 1 (see above)."""
+    return band_samples + 1
+
+
 @dataclass
 class Progress:
     """The latest report of one participant."""
@@ -121,7 +135,7 @@ class FlowGate:
         segment = self.segment
         report = self.reports[participant]
         if segment is None or report.segment == segment:
-            return max(0, report.samples - 1)
+            return band_samples_of_state(report.samples)
         if report.segment > segment:  # ahead of the plant's last report: nothing to hold back
             return 0
         backlog = max(0, self.plant_totals.get(report.segment, report.samples) - report.samples)

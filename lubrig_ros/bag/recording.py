@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from lubrig_ros.app.fileio import write_text_atomic
+from lubrig_ros.app.flow import band_samples_of_state, state_samples_of_band
 from lubrig_ros.app.interface.cdr import INDEXED_TYPES, leading_stamp_ns, sample_span
 from lubrig_ros.app.interface.contract import DEFAULT_NAMESPACE, Topic, documented_topics, resolve
 from lubrig_ros.app.recording.accounting import StreamAccount
@@ -131,6 +132,7 @@ class RecordingSession:
             for s in specs
         ]
         self.state_block = resolve(namespace, "state_block")
+        self.band_block = resolve(namespace, "band_velocity_block")
         self.progress_topic = topics[resolve(namespace, "flow_progress")]
         self.plant_node = resolve(namespace, "plant")  # its FlowProgress announces what it published
         self.participant = ""  # this recorder's flow-control participant (set by the node)
@@ -273,7 +275,11 @@ class RecordingSession:
             span.segment, span.first_index, span.count, span.stamp_ns, span.period_ns, span.skipped
         )
         if stream.spec.name == self.state_block and self.progress_per_block:
-            self.report_progress(span.segment, stream.account.taken(span.segment))
+            self.report_progress(span.segment, self.reach(span.segment))
+        elif stream.spec.name == self.band_block and self.band_paced and self.progress is not None:
+            reach = self.reach(span.segment)  # a band block that came late may move it
+            if (span.segment, reach) > self.progress:
+                self.report_progress(span.segment, reach)
 
     def _announced(self, data: bytes) -> None:
         """A FlowProgress of the plant: the samples it has published (the state_block stream's tail)."""
@@ -287,10 +293,39 @@ class RecordingSession:
             return
         if msg.participant == self.plant_node:
             account.announce(int(msg.segment), int(msg.samples))
+            band = self._account_of(self.band_block) if self.band_paced else None
+            if band is not None:  # the band samples the plant took exist too
+                band.announce(int(msg.segment), band_samples_of_state(int(msg.samples)))
 
     # ------------------------------------------------------------------ flow progress
     def _state_account(self) -> StreamAccount | None:
-        return next((s.account for s in self.streams if s.spec.name == self.state_block), None)
+        return self._account_of(self.state_block)
+
+    def _account_of(self, name: str) -> StreamAccount | None:
+        return next((s.account for s in self.streams if s.spec.name == name), None)
+
+    @property
+    def band_paced(self) -> bool:
+        """True when the band stream counts in flow progress: reported per block (sim) and required.
+
+        A sim rig's band blocks and state blocks are one stream of samples: band sample k becomes
+        state sample k (app/flow.py), and the rig's recorder must hold both whole.
+        """
+        return self.progress_per_block and self.band_block in self.required
+
+    def reach(self, segment: int) -> int:
+        """State samples of `segment` the bag holds whole: FlowProgress.samples of this recorder.
+
+        state_block's samples taken in order; with `band_paced`, no more than the band samples
+        taken in order make (a copy of a band block lost on the way holds the count back until it
+        is sent again, so that `lubrig rig` stops no writer before the bag has every sample).
+        """
+        state = self._state_account()
+        taken = 0 if state is None else state.taken(segment)
+        band = self._account_of(self.band_block) if self.band_paced else None
+        if band is not None:
+            taken = min(taken, state_samples_of_band(band.taken(segment)))
+        return taken
 
     @property
     def records_state_block(self) -> bool:
@@ -325,7 +360,7 @@ class RecordingSession:
             self.report_progress(*self.progress)
         else:  # with progress per block: the same value again
             segment = account.newest_segment
-            self.report_progress(segment, account.taken(segment))
+            self.report_progress(segment, self.reach(segment))
 
     @property
     def newest_rig_ns(self) -> int:

@@ -13,7 +13,8 @@ publishes lubrig_interfaces/FlowProgress on ``<namespace>/flow_progress``: sampl
 state_block subscription and that of every --require-samples stream have matched a publisher
 (a reader drops what arrives before it has matched the writer; a required stream is waited for
 REQUIRED_MATCH_WAIT_S, then named in a warning), after every state_block it has written the
-samples of that segment taken in order, and the latest value again every 0.2 s (heartbeat);
+samples of that segment taken in order (with band_velocity_block required: only those whose band
+samples are written too, bag/recording.py `reach`), and the latest value again every 0.2 s (heartbeat);
 with --progress-heartbeat-only (`lubrig rig` in the wall-clock modes, where nothing paces on
 it) only on matching and as the heartbeat.
 
