@@ -48,6 +48,9 @@ def test_rig_records_and_reports_case1(procs, tmp_path: Path) -> None:
     accounting = json.loads((bag / "accounting.json").read_text())  # the recorder's own count
     assert accounting["complete"] and accounting["participant"] == "/lubrig/lubrig_recorder"
     assert accounting["streams"]["/lubrig/state_block"]["samples"] == N + 1
+    # the plant's FlowProgress announced the band it took too: a missing tail would be a gap
+    band = accounting["streams"]["/lubrig/band_velocity_block"]
+    assert band["samples"] == band["segments"]["0"]["announced"] == N
     with Reader(bag) as reader:  # log times are rig time: the bag spans the run
         assert reader.start_time >= 0 and reader.end_time <= (DURATION + 0.5) * 1e9, (
             reader.start_time,
@@ -74,3 +77,18 @@ def test_rig_records_and_reports_case1(procs, tmp_path: Path) -> None:
 def reference_config_yaml() -> str:
     """YAML of case 1 at 2 s, as the launcher stores it."""
     return load_case(1).with_overrides(duration=DURATION).to_yaml()
+
+
+def test_the_launcher_stops_the_nodes_once_the_recorder_holds_what_the_plant_reported() -> None:
+    """After run_complete: the recorder's count must reach the plant's, and the plant's count
+    must be one sent after run_complete (an older one could miss the last block)."""
+    from lubrig_ros.cli.rig_ros import holds_all
+
+    hold = ("/lubrig/lubrig_recorder", "/lubrig/plant")
+    rec, plant = hold
+    assert not holds_all(hold, {rec: (0, 5000)}, [])  # nothing from the plant yet
+    assert not holds_all(hold, {rec: (0, 5000), plant: (0, 5001)}, [rec])  # plant's is older
+    assert not holds_all(hold, {rec: (0, 4001), plant: (0, 5001)}, [plant])  # a block short
+    assert not holds_all(hold, {plant: (0, 5001)}, [plant])  # the recorder not heard
+    assert holds_all(hold, {rec: (0, 5001), plant: (0, 5001)}, [plant])
+    assert holds_all(hold, {rec: (1, 0), plant: (0, 5001)}, [plant])  # a later segment

@@ -21,6 +21,9 @@ first error line of its log (cli/rig_supervisor.py); `lubrig rig` then exits 1 (
 Sim mode: belt_drive streams band blocks paced on <ns>/flow_progress (app/flow.py); when recording,
 the recorder's participant (`<ns>/lubrig_recorder`, contract.RECORDER_PARTICIPANT) is one of
 belt_drive's `required_consumers`, so a slow recorder slows the run instead of losing samples.
+After run_complete the nodes are stopped once the recorder reports every sample the plant
+reported (its count holds only samples it has of band and state; RECORDER_HOLD_S at most):
+a writer stopped earlier would take a copy lost on the way with it.
 The plant publishes the global /clock (`publish_clock`) unless `--no-clock` is given: /clock has
 one owner per ROS domain, so a second rig on the same domain runs with `--no-clock`. Every node
 of a sim rig runs with `use_sim_time` true (belt_drive, plant, analysis, and the recorder's
@@ -51,6 +54,7 @@ from ..app.interface.contract import (
     RIG_SAMPLE_STREAMS,
     parameter,
     recorded_topics,
+    resolve,
     validate_namespace,
 )
 from ..app.processes.discovery import LAUNCHED_SETTLE_S, discovery_environment
@@ -221,7 +225,10 @@ def _run_phase(sup: Supervisor, plan: RigPlan, config: RunConfig, timeout: float
     if plan.mode == "sim":
         limit = timeout if timeout else max(60.0, 10.0 * config.duration)
         stall: list[str] = []
-        complete = wait_complete(start + limit, sup.procs, plan.namespace, bar, stall, CTRL_C.is_set)
+        recorder = resolve(plan.namespace, RECORDER_PARTICIPANT) if plan.recorded else ""
+        complete = wait_complete(
+            start + limit, sup.procs, plan.namespace, bar, stall, CTRL_C.is_set, recorder
+        )
         bar.finish()
         if CTRL_C.is_set():
             raise KeyboardInterrupt

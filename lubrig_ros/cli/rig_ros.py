@@ -12,6 +12,7 @@ would both run, each bag holding both rigs' samples). The plant checks again at 
 from __future__ import annotations
 
 import subprocess
+import sys
 import time
 from collections.abc import Callable
 from typing import Any
@@ -24,6 +25,8 @@ from .progress import Progress
 #: Sim: end the run (non-zero) once the plant has reported it stalled this long without a break
 #: (a run that cannot progress; a loaded machine's pauses of a few seconds are not one).
 STALL_GIVE_UP_S = 15.0
+#: Sim, recorded: after run_complete, longest wait (s) for the recorder to hold every sample.
+RECORDER_HOLD_S = 5.0
 LAUNCHER_NODE = "lubrig_rig_launcher"
 
 
@@ -92,17 +95,19 @@ def wait_complete(
     progress: Progress | None = None,
     stall: list[str] | None = None,
     interrupted: Callable[[], bool] = lambda: False,
+    recorder: str = "",
 ) -> bool:
     """Sim: wait for <ns>/run_complete = true (latched) from the plant (rig time from /clock).
 
     Gives up early when the plant has reported its run stalled (timing status ERROR) for
     STALL_GIVE_UP_S without a break; the plant's line is appended to `stall`; returns at once
-    when `interrupted()` (the launcher's Ctrl-C).
+    when `interrupted()` (the launcher's Ctrl-C). With `recorder` (its participant name), then
+    `_await_recorder`: the nodes are stopped only once the bag holds what they sent.
     """
     from std_msgs.msg import Bool
 
     from ..app.interface import contract
-    from ..nodes.interfaces import qos_profile
+    from ..nodes.interfaces import message_class, qos_profile
 
     spec = contract.topic("run_complete").resolved(namespace)
     context, node = _launcher_node(namespace)
@@ -138,6 +143,18 @@ def wait_complete(
     node.create_subscription(
         DiagnosticArray, "/diagnostics", on_diagnostics, qos_profile(contract.topic("/diagnostics").qos)
     )
+    reports: dict[str, tuple[int, int]] = {}  # participant -> its newest (segment, samples)
+    after_complete: list[str] = []  # participants heard from once run_complete had come
+
+    def on_progress(msg: Any) -> None:
+        newest = (int(msg.segment), int(msg.samples))
+        reports[msg.participant] = max(reports.get(msg.participant, newest), newest)
+        if done:
+            after_complete.append(msg.participant)
+
+    if recorder:
+        flow = contract.topic("flow_progress").resolved(namespace)
+        node.create_subscription(message_class(flow.msgtype), flow.name, on_progress, qos_profile(flow.qos))
     from rclpy.executors import SingleThreadedExecutor
 
     executor = SingleThreadedExecutor(context=context)
@@ -150,9 +167,67 @@ def wait_complete(
                 if stall is not None:
                     stall.append(f"{timing}: {stall_text[0]}")
                 break
-            executor.spin_once(timeout_sec=0.1)  # a Ctrl-C: KeyboardInterrupt when the wait ends
+            _spin_once(executor, 0.1, interrupted)  # a Ctrl-C: KeyboardInterrupt when the wait ends
+        if done and recorder:
+            hold = (recorder, contract.resolve(namespace, "plant"))
+            _await_recorder(hold, reports, after_complete, executor, procs, interrupted)
     finally:
         executor.shutdown(timeout_sec=1.0)  # before the context: no Executor.__del__ traceback
         node.destroy_node()
         context.try_shutdown()
     return bool(done)
+
+
+def _spin_once(executor: Any, timeout: float, interrupted: Callable[[], bool]) -> None:
+    """executor.spin_once; a Ctrl-C inside it comes out as KeyboardInterrupt.
+
+    The launcher's SIGINT handler raises KeyboardInterrupt (cli/rig_supervisor.catch_ctrl_c). Raised
+    while rclpy's C++ code takes a message, pybind11 turns it into a RuntimeError ("Unable to
+    convert call argument"); with the Ctrl-C seen (`interrupted`) that is the interrupt.
+    """
+    try:
+        executor.spin_once(timeout_sec=timeout)
+    except RuntimeError:
+        if interrupted():
+            raise KeyboardInterrupt from None
+        raise
+
+
+def holds_all(hold: tuple[str, str], reports: dict[str, tuple[int, int]], after_complete: list[str]) -> bool:
+    """True when the recorder's newest (segment, samples) reaches the plant's, one sent after run_complete."""
+    recorder, plant = hold
+    return plant in after_complete and reports.get(recorder, (-1, -1)) >= reports[plant]
+
+
+def _await_recorder(
+    hold: tuple[str, str],
+    reports: dict[str, tuple[int, int]],
+    after_complete: list[str],
+    executor: Any,
+    procs: dict[str, subprocess.Popen],
+    interrupted: Callable[[], bool],
+) -> None:
+    """After run_complete: spin until the recorder reports every sample the plant reported.
+
+    `hold`: the (recorder, plant) participant names; `reports`: the newest (segment, samples) of
+    each; the plant's count must be one sent after run_complete (`after_complete`). A copy of a
+    block lost on the way is sent again when the reader answers the writer's next heartbeat
+    (config/fastdds_localhost.xml), and a writer stopped before that takes the sample with it:
+    the recorder's FlowProgress counts only samples it holds of band and state
+    (bag/recording.py `reach`). RECORDER_HOLD_S at most; then one line, and the nodes are
+    stopped (the recorder's accounting then names what the bag lacks).
+    """
+    recorder, plant = hold
+    end = time.monotonic() + RECORDER_HOLD_S
+    while not holds_all(hold, reports, after_complete):
+        if interrupted() or any(p.poll() is not None for p in procs.values()):
+            return
+        if time.monotonic() >= end:
+            print(
+                f"lubrig rig: {RECORDER_HOLD_S:g} s after run_complete the recorder holds (segment, "
+                f"samples) {reports.get(recorder)} of the plant's {reports.get(plant)}; stopping the nodes",
+                file=sys.stderr,
+                flush=True,
+            )
+            return
+        _spin_once(executor, 0.05, interrupted)
