@@ -117,18 +117,37 @@ def test_first_report_waits_for_every_stream_with_a_publisher_on_the_graph(tmp_p
     session = _session(tmp_path, ["state_block", "/clock", "band_velocity_block"], sim=True)
     reports: list[tuple[int, int, int]] = []
     session.on_progress = lambda seg, n, t: reports.append((seg, n, t))
-    clock, band = _index(session, "/clock"), _index(session, "band_velocity_block")
-    session.lagging(0, [clock])
-    session.lagging(1, [band])
-    session.matched([_index(session, "state_block")])
-    assert reports == []  # /clock's and the band's readers lag their publishers
-    session.lagging(0, [])
+    state, clock, band = (_index(session, n) for n in ("state_block", "/clock", "band_velocity_block"))
+    names = [s.spec.name for s in session.streams]
+    one = dict.fromkeys(names, 1)
+    session.graph(0, one, {state: 1, clock: 0})  # worker 0 reads state_block and /clock
+    session.graph(1, one, {band: 0})
+    session.matched([state])
+    assert reports == [] and session.unmatched_publishers() == sorted(names[1:])
+    session.graph(0, one, {state: 1, clock: 1})
     session.heartbeat()
-    assert reports == []  # the band's still lags (another worker)
-    session.lagging(1, [])
+    assert reports == []  # the band's reader still lags (another worker)
+    session.graph(1, one, {band: 1})
     assert reports == [(0, 0, 0)]
-    session.lagging(1, [band])  # after the first report: no second one
+    session.graph(1, one, {band: 0})  # after the first report: no second one
     assert reports == [(0, 0, 0)] and session.ready_lagging == ()
+    session.close()
+
+
+def test_a_reader_is_held_to_a_publisher_another_worker_has_discovered(tmp_path: Path) -> None:
+    """Each worker discovers each publisher on its own: the one that reads /clock may not know the
+    replay's /clock writer yet, though the one that reads state_block does (a discovery message
+    lost on the way). Its own view shows nothing to wait for; the other's does."""
+    session = _session(tmp_path, ["state_block", "/clock"], sim=True)
+    reports: list[tuple[int, int, int]] = []
+    session.on_progress = lambda seg, n, t: reports.append((seg, n, t))
+    state, clock = _index(session, "state_block"), _index(session, "/clock")
+    session.graph(1, {"/clock": 0, resolve(NS, "state_block"): 0}, {clock: 0})
+    session.graph(0, {"/clock": 1, resolve(NS, "state_block"): 1}, {state: 1})
+    session.matched([state])
+    assert reports == [] and session.unmatched_publishers() == ["/clock"]
+    session.graph(1, {"/clock": 1, resolve(NS, "state_block"): 1}, {clock: 1})
+    assert reports == [(0, 0, 0)]
     session.close()
 
 
@@ -137,8 +156,9 @@ def test_first_report_waits_for_a_lagging_stream_only_so_long(tmp_path: Path) ->
     session = _session(tmp_path, ["state_block", "/clock"], sim=True)
     reports: list[tuple[int, int, int]] = []
     session.on_progress = lambda seg, n, t: reports.append((seg, n, t))
-    session.lagging(0, [_index(session, "/clock")])
-    session.matched([_index(session, "state_block")])
+    state, clock = _index(session, "state_block"), _index(session, "/clock")
+    session.graph(0, {"/clock": 1, resolve(NS, "state_block"): 1}, {state: 1, clock: 0})
+    session.matched([state])
     session.heartbeat()
     assert reports == []
     assert session.state_matched_at is not None

@@ -23,7 +23,7 @@ import bisect
 import contextlib
 import json
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -142,8 +142,9 @@ class RecordingSession:
         self.matched_streams: set[str] = set()  # streams whose reader has matched a publisher
         self.state_matched_at: float | None = None  # monotonic s: state_block's reader matched
         self.ready_without: tuple[str, ...] = ()  # required streams the first report did not wait for
-        #: per worker: streams with a publisher on the graph that their reader has not matched yet
-        self.lagging_streams: dict[int, set[str]] = {}
+        #: per worker: publishers it sees on the graph per recorded topic (`graph`)
+        self.seen_publishers: dict[int, dict[str, int]] = {}
+        self.reader_matches: dict[str, int] = {}  # stream -> publishers its reader has matched
         self.ready_lagging: tuple[str, ...] = ()  # lagging streams the first report did not wait for
         self.use_sim_time = use_sim_time
         self.run_config = run_config
@@ -188,7 +189,7 @@ class RecordingSession:
         """These streams' subscriptions have matched a publisher; report (0, 0) once ready.
 
         Ready: state_block and every `required` stream have matched a publisher, and no stream
-        has a publisher on the graph that its reader has not matched (`lagging`). A publisher's
+        has a publisher on the graph that its reader has not matched (`graph`). A publisher's
         own count of matched subscriptions is half of a match: its reader drops what arrives
         before the reader has matched the writer in turn (a volatile reader starts at the
         writer's next sample), so belt_drive, the plant and a lossless replay send nothing before
@@ -199,9 +200,14 @@ class RecordingSession:
             self.state_matched_at = time.monotonic()
         self._report_if_ready()
 
-    def lagging(self, worker: int, streams: Sequence[int]) -> None:
-        """All of worker `worker`'s streams whose reader has not matched every publisher on the graph."""
-        self.lagging_streams[worker] = {self.streams[i].spec.name for i in streams}
+    def graph(self, worker: int, seen: Mapping[str, int], matched: Mapping[int, int]) -> None:
+        """Worker `worker`'s view: publishers it sees per recorded topic, its readers' matched ones.
+
+        `seen`: topic -> publishers on the worker's graph (every recorded topic); `matched`: stream
+        index -> publishers its reader (one of this worker's) has matched.
+        """
+        self.seen_publishers[worker] = dict(seen)
+        self.reader_matches.update({self.streams[i].spec.name: n for i, n in matched.items()})
         self._report_if_ready()
 
     def _report_if_ready(self) -> None:
@@ -215,8 +221,20 @@ class RecordingSession:
         return [name for name in self.required if name not in self.matched_streams]
 
     def unmatched_publishers(self) -> list[str]:
-        """Streams with a publisher on the graph that their reader has not matched yet (sorted)."""
-        return sorted(set().union(*self.lagging_streams.values()))
+        """Streams whose reader has matched fewer publishers than a worker sees on the graph (sorted).
+
+        Each worker is a participant of its own, and each discovers each publisher on its own (a
+        discovery message lost on the way is sent again later): the worker that reads a stream may
+        not yet know a publisher the others see, and has then not matched it either. So every
+        worker's view counts, not only the reading worker's.
+        """
+        lagging = []
+        for stream in self.streams:
+            name = stream.spec.name
+            most = max((seen.get(name, 0) for seen in self.seen_publishers.values()), default=0)
+            if self.reader_matches.get(name, 0) < most:
+                lagging.append(name)
+        return sorted(lagging)
 
     def start(self) -> None:
         """Without use_sim_time the run configuration is written now (receive-time log times)."""

@@ -137,14 +137,14 @@ class Recorder:
         self.session.on_progress = self.progress_node.publish
 
     def _message(self, message: PoolMessage) -> None:
-        """A worker's "data" batch, "matched" or "lagging" report (anything else is ignored)."""
+        """A worker's "data" batch, "matched" or "graph" report (anything else is ignored)."""
         kind, wid, payload = message
         if kind == "data":
             self.session.handle(payload)
         elif kind == "matched":
             self.session.matched(payload)
-        elif kind == "lagging":
-            self.session.lagging(wid, payload)
+        elif kind == "graph":
+            self.session.graph(wid, *payload)
 
     def start_workers(self, timeout: float = 90.0, should_stop: Sequence[bool] = (False,)) -> bool:
         """Start the subscriber processes; see WorkerPool.start."""

@@ -9,10 +9,11 @@ spin_once loop, and ships (stream index, receive time, bytes) batches to the rec
 only writer of the bag: block messages at once, others every BATCH_PERIOD_S.
 
 Messages on the pool's queue: ("ready", wid, None) once a worker has subscribed, ("matched", wid,
-[stream index]) once a subscription has a publisher, ("lagging", wid, [stream index]) whenever the
-set of its streams changes that have more publishers on the graph than their reader has matched
-(the graph and the reader learn of a publisher each on its own), ("data", wid, [(stream, recv_ns,
-bytes)]), and ("done", wid, None) after its last batch.
+[stream index]) once a subscription has a publisher, ("graph", wid, ({topic: publishers on its
+graph}, {stream index: publishers its reader has matched})) whenever either changes (every
+recorded topic: each worker discovers each publisher on its own, and a reader is held to what any
+worker sees; bag/recording.py `unmatched_publishers`), ("data", wid, [(stream, recv_ns, bytes)]),
+and ("done", wid, None) after its last batch.
 """
 
 from __future__ import annotations
@@ -93,8 +94,13 @@ def _worker(
     stop: Any,
     use_sim_time: bool = False,
     namespace: str = DEFAULT_NAMESPACE,
+    recorded: Sequence[str] = (),
 ) -> None:
     """Subscribe to specs (raw) and ship batches of (stream index, recv_ns, bytes) to out.
+
+    `recorded`: every topic the recorder records (all workers'): the worker reports the publishers
+    it sees of each (the "graph" message), so that the readers of another worker can be held to
+    what this one has discovered.
 
     Spun by rclpy's EventsExecutor with spin_once (its spin() fires no timer in this wheel and
     keeps a core busy: ../shared/ros2-interfaces-on-pip.md), so shipping and the stop check are
@@ -144,7 +150,7 @@ def _worker(
     executor.add_node(node)
     out.put(("ready", wid, None))
     unmatched = set(range(len(subs)))
-    lagging: list[int] = []  # streams with a publisher on the graph their reader has not matched
+    view: tuple[tuple[int, ...], tuple[int, ...]] | None = None  # the last "graph" report
     next_ship = time.monotonic() + BATCH_PERIOD_S
     next_check = 0.0
     try:
@@ -165,14 +171,12 @@ def _worker(
                 if matched:
                     unmatched.difference_update(matched)
                     out.put(("matched", wid, [streams[i] for i in matched]))
-                now_lagging = [
-                    streams[i]
-                    for i, sub in enumerate(subs)
-                    if node.count_publishers(sub.topic_name) > sub.get_publisher_count()
-                ]
-                if now_lagging != lagging:
-                    lagging = now_lagging
-                    out.put(("lagging", wid, lagging))
+                seen = tuple(node.count_publishers(name) for name in recorded)
+                counts = tuple(sub.get_publisher_count() for sub in subs)
+                if (seen, counts) != view:
+                    view = (seen, counts)
+                    report = (dict(zip(recorded, seen, strict=True)), dict(zip(streams, counts, strict=True)))
+                    out.put(("graph", wid, report))
         # what arrived before the stop was seen: take it, then ship the rest
         for _ in range(1000):
             before = len(batch)
@@ -225,6 +229,7 @@ class WorkerPool:
                     self.stop_event,
                     self.use_sim_time,
                     self.namespace,
+                    [spec.name for spec in self.specs],
                 ),
                 daemon=True,
             )
