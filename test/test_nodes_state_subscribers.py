@@ -1,8 +1,10 @@
-"""The plant's state_subscribers (the launchers name the analysis): a sim run waits for them.
+"""What a sim plant waits for before it announces itself (and so before belt_drive starts).
 
-A sim plant whose state_subscribers name a node stays silent (no flow_progress, so belt_drive
-would not start and no sample is published) past its own start-up check until that node has
-subscribed to state_block; then it announces itself. Real processes over DDS.
+A sim plant whose state_subscribers name a node (the launchers name the analysis) stays silent
+(no flow_progress, so belt_drive would not start and no sample is published) past its own
+start-up check until that node has subscribed to state_block; then it announces itself. One with
+a declared band_source (the launchers declare belt_drive) stays silent until its band reader has
+matched a publisher: a block sent before would be dropped by the reader. Real processes over DDS.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ import time
 import pytest
 from lubrig_testkit.harness import wait_until
 
-from lubrig_interfaces.msg import FlowProgress, RigStateBlock
+from lubrig_interfaces.msg import BandVelocityBlock, FlowProgress, RigStateBlock
 from lubrig_ros.app.interface import contract
 from lubrig_ros.nodes.interfaces import qos_profile
 
@@ -31,6 +33,26 @@ def test_a_sim_plant_announces_itself_only_once_its_state_subscribers_are_there(
     time.sleep(3.0)  # twice its namespace check (1.5 s): it would have announced itself by now
     assert not probe.messages[progress], plant.log()
     probe.subscribe(f"{NS}/state_block", RigStateBlock, qos_profile(contract.topic("state_block").qos))
+    assert probe.wait_for(
+        lambda: any(m.participant == f"{NS}/plant" for m in list(probe.messages[progress])), 60
+    ), plant.log()
+    assert plant.running(), plant.log()
+
+
+def test_a_sim_plant_with_a_band_source_announces_itself_only_once_its_band_reader_has_a_publisher(
+    procs, probe
+):
+    progress = f"{NS}/flow_progress"
+    probe.subscribe(progress, FlowProgress, qos_profile(contract.topic("flow_progress").qos))
+    # no start-up check (as `lubrig rig` starts it): nothing else holds the announcement back
+    plant = procs.node("plant", case=1, duration=1.0, band_source="/probe", namespace_settle=0.0)
+    wait_until(
+        lambda: "plant: mode=sim" in plant.errors() + plant.output(), 120, "the plant built", alive=(plant,)
+    )
+    time.sleep(3.0)  # sixty of its announcement polls (50 ms)
+    assert not probe.messages[progress], plant.log()
+    spec = contract.topic("band_velocity_block")
+    probe.publisher(spec.resolved(NS).name, BandVelocityBlock, qos_profile(spec.qos))
     assert probe.wait_for(
         lambda: any(m.participant == f"{NS}/plant" for m in list(probe.messages[progress])), 60
     ), plant.log()

@@ -3,9 +3,12 @@
 Real processes: `lubrig rig` twice without --namespace on one domain (the user's mistake of the
 issue), then node processes started by hand. Asserted: the second launcher exits 2 with one line
 naming the first rig's nodes and starts nothing, the first finishes its run and its bag verifies
-with every sample once (no second rig's samples in it); a plant started where another plant runs
-refuses (exit 2, naming it); a band publisher other than the declared source is reported (WARN
-on /diagnostics and in the plant's log, naming it).
+with every sample once (no second rig's samples in it); a launcher's node alone (a rig starting,
+its nodes not yet on the graph) holds the namespace against `lubrig rig` and a plant started by
+hand, not against a plant without a start-up check (as `lubrig rig` starts its own), and no longer
+once it has left; a plant started where another plant runs refuses (exit 2, naming it); a band
+publisher other than the declared source is reported (WARN on /diagnostics and in the plant's
+log, naming it).
 """
 
 from __future__ import annotations
@@ -22,8 +25,9 @@ from lubrig_testkit.harness import wait_until
 
 from lubrig_interfaces.msg import BandVelocityBlock
 from lubrig_ros.app.interface import contract
-from lubrig_ros.app.processes.rig_plan import NODES, RECORDER_NODE_PREFIX
+from lubrig_ros.app.processes.rig_plan import LAUNCHER_NODE, NODES, RECORDER_NODE_PREFIX
 from lubrig_ros.bag.verify import verify_bag
+from lubrig_ros.cli.rig_ros import LauncherPresence
 from lubrig_ros.core.presets import load_case
 from lubrig_ros.core.run import simulate
 from lubrig_ros.nodes.interfaces import qos_profile
@@ -36,6 +40,7 @@ def resolve_node(name: str) -> str:
     return contract.resolve(contract.DEFAULT_NAMESPACE, name)
 
 
+LUBRIG = (sys.executable, "-m", "lubrig_ros.cli.main")
 DURATION = 400.0  # rig s: a sim run long enough (tens of wall s) for a second launcher meanwhile
 
 
@@ -104,7 +109,10 @@ def test_a_second_rig_in_the_same_namespace_is_refused(ros_env, tmp_path):
     # once in a suite run (docs/testing.md); every name must be one of the first rig's nodes
     named = re.search(r"another rig runs there \(([^)]*)\)", lines[0])
     assert named, lines
-    rig_nodes, recorder = {resolve_node(n) for n in NODES}, resolve_node(RECORDER_NODE_PREFIX)
+    rig_nodes, recorder = (
+        {resolve_node(n) for n in (*NODES, LAUNCHER_NODE)},
+        resolve_node(RECORDER_NODE_PREFIX),
+    )
     names = named.group(1).split(", ")
     assert names and all(n in rig_nodes or n.startswith(recorder) for n in names), names
     assert "--namespace /lubrig_2" in lines[0], lines  # what would be valid
@@ -119,6 +127,46 @@ def test_a_second_rig_in_the_same_namespace_is_refused(ros_env, tmp_path):
     x = np.array(read_rosbags(first_dir / "bag")["/lubrig/state_block"])
     ref = simulate(load_case(1).with_overrides(duration=DURATION))
     assert np.array_equal(x, ref.displacement)
+
+
+def test_a_launchers_node_holds_the_namespace_until_it_leaves(ros_env, procs, tmp_path, monkeypatch):
+    for key, value in ros_env.items():  # this process's participant on the test's domain
+        monkeypatch.setenv(key, value)
+    launcher = resolve_node(LAUNCHER_NODE)
+    presence = LauncherPresence(contract.DEFAULT_NAMESPACE)
+    try:
+        assert presence.node.get_fully_qualified_name() == launcher
+        # another `lubrig rig` there is refused, naming the launcher's node
+        second = subprocess.run(
+            [*LUBRIG, "rig", "--case", "7", "--duration", "1", "--run-dir", str(tmp_path / "second")],
+            env=ros_env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
+        assert second.returncode == 2, second.stdout + second.stderr
+        lines = second.stderr.strip().splitlines()
+        assert len(lines) == 1 and f"another rig runs there ({launcher})" in lines[0], lines
+        assert not (tmp_path / "second").exists()
+        # a plant started by hand (its own 1.5 s check) refuses, naming it
+        checked = procs.node("plant", case=1, mode="sim")
+        assert checked.wait(timeout=120) == 2, checked.log()
+        fatal = [line for line in (checked.errors() + checked.output()).splitlines() if "[FATAL]" in line]
+        assert len(fatal) == 1 and f"({launcher})" in fatal[0], checked.log()
+        # the launcher's own plant has no check of its own: it starts
+        own = procs.node("plant", case=1, mode="sim", namespace_settle=0.0)
+        wait_until(
+            lambda: "flow_progress as" in own.errors(), 120, "the unchecked plant announced", alive=(own,)
+        )
+        assert own.stop() == 0, own.log()
+    finally:
+        presence.close()
+    # gone from the graph: a plant's check passes again
+    later = procs.node("plant", case=1, mode="sim")
+    wait_until(
+        lambda: "flow_progress as" in later.errors(), 120, "a plant after the launcher left", alive=(later,)
+    )
 
 
 def test_a_plant_where_another_plant_runs_refuses_to_start(procs):

@@ -57,7 +57,7 @@ from ..app.interface.contract import (
     resolve,
     validate_namespace,
 )
-from ..app.processes.discovery import LAUNCHED_SETTLE_S, discovery_environment
+from ..app.processes.discovery import discovery_environment
 from ..app.processes.rig_plan import CLEAN_EXITS, READY_LINES, ParameterValue, RigPlan, rig_plan
 from ..app.processes.startup_trace import mark
 from ..app.rundir import prepare_output_dir
@@ -69,7 +69,7 @@ from ..nodes.view import DEFAULT_PORT, HIGHEST_PORT, tcp_port
 from .main import CommandError
 from .progress import Progress
 from .rig_gate import StagedRunDir, StartGate, admit_run
-from .rig_ros import STALL_GIVE_UP_S, wait_complete
+from .rig_ros import STALL_GIVE_UP_S, LauncherPresence, wait_complete
 from .rig_supervisor import CTRL_C, GRACE_S, Exit, RigProcessError, Supervisor, catch_ctrl_c, stop_all
 
 __all__ = [  # what tests and launch/rig.launch.py take from here
@@ -217,7 +217,9 @@ def _allowed(mode: str) -> Callable[[Exit], bool]:
     return allowed
 
 
-def _run_phase(sup: Supervisor, plan: RigPlan, config: RunConfig, timeout: float | None) -> None:
+def _run_phase(
+    sup: Supervisor, plan: RigPlan, config: RunConfig, timeout: float | None, presence: LauncherPresence
+) -> None:
     """Wait for the end of the run (sim: run_complete; realtime: the wall duration)."""
     allowed = _allowed(plan.mode)
     bar = Progress("lubrig rig", config.duration)
@@ -226,9 +228,7 @@ def _run_phase(sup: Supervisor, plan: RigPlan, config: RunConfig, timeout: float
         limit = timeout if timeout else max(60.0, 10.0 * config.duration)
         stall: list[str] = []
         recorder = resolve(plan.namespace, RECORDER_PARTICIPANT) if plan.recorded else ""
-        complete = wait_complete(
-            start + limit, sup.procs, plan.namespace, bar, stall, CTRL_C.is_set, recorder
-        )
+        complete = wait_complete(presence, start + limit, sup.procs, bar, stall, CTRL_C.is_set, recorder)
         bar.finish()
         if CTRL_C.is_set():
             raise KeyboardInterrupt
@@ -280,8 +280,9 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--view-allow {args.view_allow[0]} applies with --view only")
     mode = args.mode
     plant_extra = _plant_options(args, mode)
-    # the launcher watches the graph for GRAPH_SETTLE_S itself (cli/rig_gate.py)
-    plant_extra["namespace_settle"] = LAUNCHED_SETTLE_S
+    # no start-up check of its own: the launcher watches the graph for GRAPH_SETTLE_S itself
+    # (cli/rig_gate.py), and its node holds the namespace until the rig's nodes stop
+    plant_extra["namespace_settle"] = 0.0
     env = discovery.env
     env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")  # node logs complete even on SIGINT
     # the launcher's own participant (graph check, run_complete) with the nodes' transports and
@@ -308,7 +309,8 @@ def run(args: argparse.Namespace) -> int:
         staged.discard()
         raise
     gate = StartGate()
-    admit = functools.partial(admit_run, namespace, gate, staged, with_recorder)
+    presence = LauncherPresence(namespace)
+    admit = functools.partial(admit_run, presence, gate, staged, with_recorder)
     sup = Supervisor(staged.path / "logs", env, gate, admit)
     catch_ctrl_c()
     with contextlib.suppress(ValueError, RuntimeError):  # stacks on SIGUSR1, as the nodes do
@@ -330,7 +332,7 @@ def run(args: argparse.Namespace) -> int:
         )
         sup.phase = "the run"
         start = time.monotonic()
-        _run_phase(sup, plan, config, args.timeout)
+        _run_phase(sup, plan, config, args.timeout, presence)
         wall = time.monotonic() - start
     except RigProcessError as exc:
         failure = "" if CTRL_C.is_set() else str(exc)  # else: nodes ended on the same Ctrl-C
@@ -340,6 +342,7 @@ def run(args: argparse.Namespace) -> int:
         if CTRL_C.is_set():
             print("lubrig rig: interrupted, stopping the nodes", file=sys.stderr)
         _stop(sup)
+        presence.close()  # the namespace is free once the rig's nodes have stopped
         if not staged.placed:  # ended before the gate opened: nothing of the run is left
             gate.shut()
             staged.discard()

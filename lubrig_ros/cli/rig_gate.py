@@ -26,7 +26,7 @@ from pathlib import Path
 from ..app.processes.startup_trace import mark
 from ..nodes.entry import GATE_VARIABLE
 from .main import CommandError
-from .rig_ros import namespace_taken
+from .rig_ros import LauncherPresence, namespace_taken
 
 
 class StartGate:
@@ -98,15 +98,16 @@ def set_aside(bag_dir: Path) -> None:
     print(f"lubrig rig: previous bag moved to {previous}")
 
 
-def admit_run(namespace: str, gate: StartGate, staged: StagedRunDir, recorded: bool) -> Path:
+def admit_run(presence: LauncherPresence, gate: StartGate, staged: StagedRunDir, recorded: bool) -> Path:
     """The namespace check, while the held processes import; then the gate opens (or shuts).
 
     Taken: the held processes end without starting, nothing is left in the run folder's place,
     CommandError naming the rig there. Free: the run folder in place, the logs' folder returned.
+    The presence stays on the graph either way (the caller closes it).
     """
     mark("launcher", "namespace check begins")
     try:
-        taken = namespace_taken(namespace)
+        taken = namespace_taken(presence)
     except BaseException:
         gate.shut()
         staged.discard()

@@ -1,10 +1,13 @@
 """`lubrig rig`'s own ROS participant: is the namespace free (before the nodes start), is the run over.
 
-`namespace_taken` looks at the graph after GRAPH_SETTLE_S (app/processes/discovery.py): another rig's nodes
-in the namespace (plant, belt_drive, analysis, the recorder's), or any publisher of a topic in
-it, make the namespace taken, and `lubrig rig` refuses to start there (two rigs in one namespace
-would both run, each bag holding both rigs' samples). The plant checks again at its own start-up
-(nodes/graph.py), for a rig that was not yet discovered here.
+`LauncherPresence` is the launcher's node, <namespace>/LAUNCHER_NODE (app/processes/rig_plan.py),
+on the graph from the namespace check until the rig's nodes have stopped. `namespace_taken` looks
+at the graph after GRAPH_SETTLE_S (app/processes/discovery.py): another rig's nodes in the
+namespace (plant, belt_drive, analysis, the recorder's), another launcher's node (a rig starting
+there), or any publisher of a topic in it, make the namespace taken, and `lubrig rig` refuses to
+start there (two rigs in one namespace would both run, each bag holding both rigs' samples).
+Whatever starts in the namespace later sees this launcher's node: another launcher in its own
+check, a plant in its start-up check (nodes/graph.py); so the rig's own plant needs no check.
 
 `wait_complete` (sim) waits for the plant's latched run_complete, gives up on a stalled run.
 """
@@ -17,9 +20,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from ..app.interface.contract import DEFAULT_NAMESPACE
 from ..app.processes.discovery import GRAPH_SETTLE_S, fully_qualified, rig_occupants
-from ..app.processes.rig_plan import NODES, RECORDER_NODE_PREFIX
+from ..app.processes.rig_plan import LAUNCHER_NODE, NODES, RECORDER_NODE_PREFIX
 from .progress import Progress
 
 #: Sim: end the run (non-zero) once the plant has reported it stalled this long without a break
@@ -27,32 +29,65 @@ from .progress import Progress
 STALL_GIVE_UP_S = 15.0
 #: Sim, recorded: after run_complete, longest wait (s) for the recorder to hold every sample.
 RECORDER_HOLD_S = 5.0
-LAUNCHER_NODE = "lubrig_rig_launcher"
 
 
-def _launcher_node(namespace: str) -> tuple[Any, Any]:
-    """A context of its own (the nodes' environment is this process's) and the launcher's node.
+class LauncherPresence:
+    """The launcher's context and node in `namespace`, made on first use, until `close`.
 
     The node is <namespace>/LAUNCHER_NODE: rigs in other namespaces on the domain each have
-    their own launcher node, not one name shared by several.
+    their own launcher node, not one name shared by several. No parameter services: nothing
+    spins it while the rig runs in wall-clock modes, and a service that never answers would stall
+    `ros2 param` callers.
 
     Without rclpy's signal handlers: a Ctrl-C reaches the launcher's Python handler directly (a
     KeyboardInterrupt in its main thread, which stops the rig). With them installed by the graph
     guard's context, a launcher in its realtime wait (plain sleeps, no rclpy) once did not see a
     SIGINT within 60 s.
     """
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.node import Node
-    from rclpy.signals import SignalHandlerOptions
 
-    context = Context()
-    rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    return context, Node(LAUNCHER_NODE, namespace=namespace, context=context)
+    def __init__(self, namespace: str) -> None:
+        self.namespace = namespace
+        self._made: tuple[Any, Any] | None = None
+
+    def _make(self) -> tuple[Any, Any]:
+        if self._made is None:
+            import rclpy
+            from rclpy.context import Context
+            from rclpy.node import Node
+            from rclpy.signals import SignalHandlerOptions
+
+            context = Context()
+            rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
+            node = Node(
+                LAUNCHER_NODE, namespace=self.namespace, context=context, start_parameter_services=False
+            )
+            self._made = (context, node)
+        return self._made
+
+    @property
+    def context(self) -> Any:
+        """The launcher's rclpy context (made with the node)."""
+        return self._make()[0]
+
+    @property
+    def node(self) -> Any:
+        """The launcher's node."""
+        return self._make()[1]
+
+    def close(self) -> None:
+        """Leave the graph (a no-op if the node was never made)."""
+        if self._made is not None:
+            context, node = self._made
+            self._made = None
+            node.destroy_node()
+            context.try_shutdown()
 
 
 def _occupants(node: Any, namespace: str) -> list[str]:
-    """Who the launcher's node sees holding `namespace` (app.processes.discovery.rig_occupants)."""
+    """Who the launcher's node sees holding `namespace` (app.processes.discovery.rig_occupants).
+
+    Another launcher's node has this one's name: it shows as a second node of that name.
+    """
     prefix = namespace.rstrip("/") + "/"
     names = (t for t, _types in node.get_topic_names_and_types())
     topics = [t for t in names if t.startswith(prefix) and "/" not in t[len(prefix) :]]
@@ -60,38 +95,39 @@ def _occupants(node: Any, namespace: str) -> list[str]:
         t: [(i.node_namespace, i.node_name) for i in node.get_publishers_info_by_topic(t)] for t in topics
     }
     nodes = [(ns, n) for n, ns in node.get_node_names_and_namespaces()]
-    held = rig_occupants(namespace, nodes, publishers, (*NODES, RECORDER_NODE_PREFIX))
-    return [h for h in held if h != fully_qualified(node.get_namespace(), LAUNCHER_NODE)]
+    own = fully_qualified(node.get_namespace(), LAUNCHER_NODE)
+    held = [
+        h for h in rig_occupants(namespace, nodes, publishers, (*NODES, RECORDER_NODE_PREFIX)) if h != own
+    ]
+    if [fully_qualified(ns, n) for ns, n in nodes].count(own) > 1:
+        held.append(own)
+    return sorted(held)
 
 
-def namespace_taken(namespace: str, settle: float = GRAPH_SETTLE_S) -> str:
-    """One line naming the rig that holds `namespace` on this domain, or "" (after `settle` s).
+def namespace_taken(presence: LauncherPresence, settle: float = GRAPH_SETTLE_S) -> str:
+    """One line naming the rig that holds the presence's namespace on this domain, or "" (after `settle` s).
 
     The graph is read once `settle` s of discovery have passed (rmw's discovery keeps the graph
     up to date meanwhile; a rig seen then is named with all of its nodes discovered by then).
     One look, not a poll: the node processes import beside this wait (cli/rig_gate.py), and CPU
-    spent here is taken from them.
+    spent here is taken from them. The presence stays on the graph either way (`close` ends it).
     """
-    context, node = _launcher_node(namespace)
-    try:
-        time.sleep(settle)
-        held = _occupants(node, namespace)
-        if not held:
-            return ""
-        return (
-            f"--namespace {namespace} is taken on ROS_DOMAIN_ID {node.context.get_domain_id()}: another "
-            f"rig runs there ({', '.join(held)}); give this rig a namespace of its own (e.g. --namespace "
-            f"{namespace.rstrip('/')}_2) or stop that rig"
-        )
-    finally:
-        node.destroy_node()
-        context.try_shutdown()
+    node, namespace = presence.node, presence.namespace
+    time.sleep(settle)
+    held = _occupants(node, namespace)
+    if not held:
+        return ""
+    return (
+        f"--namespace {namespace} is taken on ROS_DOMAIN_ID {node.context.get_domain_id()}: another "
+        f"rig runs there ({', '.join(held)}); give this rig a namespace of its own (e.g. --namespace "
+        f"{namespace.rstrip('/')}_2) or stop that rig"
+    )
 
 
 def wait_complete(
+    presence: LauncherPresence,
     deadline: float,
     procs: dict[str, subprocess.Popen],
-    namespace: str = DEFAULT_NAMESPACE,
     progress: Progress | None = None,
     stall: list[str] | None = None,
     interrupted: Callable[[], bool] = lambda: False,
@@ -109,8 +145,8 @@ def wait_complete(
     from ..app.interface import contract
     from ..nodes.interfaces import message_class, qos_profile
 
+    namespace, context, node = presence.namespace, presence.context, presence.node
     spec = contract.topic("run_complete").resolved(namespace)
-    context, node = _launcher_node(namespace)
     done = []
     node.create_subscription(
         Bool, spec.name, lambda m: done.append(True) if m.data else None, qos_profile(spec.qos)
@@ -173,8 +209,8 @@ def wait_complete(
             _await_recorder(hold, reports, after_complete, executor, procs, interrupted)
     finally:
         executor.shutdown(timeout_sec=1.0)  # before the context: no Executor.__del__ traceback
-        node.destroy_node()
-        context.try_shutdown()
+        for subscription in list(node.subscriptions):  # the node stays until the rig has stopped
+            node.destroy_subscription(subscription)
     return bool(done)
 
 

@@ -4,9 +4,11 @@ The rules are ROS-free (app/processes/discovery.py: `rig_occupants`, `extra_publ
 `band_source_problem`); this module asks rclpy for the graph and acts on the answer:
 
 - `NamespaceGuard`: a node's start-up (the plant's). For GRAPH_SETTLE_S of discovery it looks for
-  another node of its own name, or another publisher of its outputs, in its namespace (another
-  rig there: two `lubrig rig` without --namespace). Found: one FATAL line naming them, and the
-  node ends with exit status 2. Not found: `clear` is set, and the node's run may start.
+  another node of its own name, another publisher of its outputs, or a `lubrig rig` launcher's
+  node in its namespace (another rig there, or starting: two `lubrig rig` without --namespace).
+  Found: one FATAL line naming them, and the node ends with exit status 2. Not found: `clear`
+  is set, and the node's run may start. A settle of 0 is no check: `lubrig rig`'s plant, whose
+  launcher has checked and holds the namespace.
 - `band_source_status`: the "band sources" diagnostic status, WARN naming every publisher of
   band input besides the declared source (every mode; the plant's diagnostics carry it).
 - `delivers_to`: whether a sample published now reaches a named node (its subscriptions
@@ -34,6 +36,7 @@ from ..app.processes.discovery import (
     extra_publishers,
     fully_qualified,
 )
+from ..app.processes.rig_plan import LAUNCHER_NODE
 from .common import steady_timer
 from .interfaces import message_type
 
@@ -53,14 +56,18 @@ def graph_publishers(node: Node, topics: Iterable[str]) -> dict[str, list[Endpoi
 def namespace_taken(node: Node, topics: Iterable[str]) -> str:
     """One line naming the other rig's nodes in `node`'s namespace, or "" if none is seen.
 
-    Another rig: a second node of `node`'s fully qualified name, or a publisher of one of
-    `topics` (the node's own outputs, one publisher each) other than `node`.
+    Another rig: a second node of `node`'s fully qualified name, a publisher of one of `topics`
+    (the node's own outputs, one publisher each) other than `node`, or a `lubrig rig` launcher's
+    node (a rig started there, its nodes perhaps not yet on the graph).
     """
     own = node.get_fully_qualified_name()
+    launcher = fully_qualified(node.get_namespace(), LAUNCHER_NODE)
     names = [fully_qualified(ns, n) for n, ns in node.get_node_names_and_namespaces()]
     others = set(extra_publishers(graph_publishers(node, topics), own))
     if names.count(own) > 1:
         others.add(own)
+    if launcher in names:
+        others.add(launcher)
     if not others:
         return ""
     return (
@@ -77,6 +84,9 @@ class NamespaceGuard:
         self.node, self.topics = node, tuple(topics)
         self.end = time.monotonic() + settle
         self.clear = threading.Event()
+        if settle <= 0.0:  # no check: the launcher holds the namespace
+            self.clear.set()
+            return
         self._timer = steady_timer(node, GUARD_PERIOD_S, self._look)
 
     def _look(self) -> None:
@@ -96,9 +106,9 @@ class NamespaceGuard:
         ender.start()
 
 
-def band_source_status(node: Node, topics: Iterable[str], source: str, hardware_id: str) -> Status:
-    """The "band sources" status: WARN naming each band publisher besides the declared `source`."""
-    publishers = graph_publishers(node, topics)
+def band_source_status(node: Node, readers: Iterable[Any], source: str, hardware_id: str) -> Status:
+    """The "band sources" status: WARN naming each publisher of the `readers`' topics but `source`."""
+    publishers = graph_publishers(node, (r.topic_name for r in readers))
     problem = band_source_problem(publishers, source, node.get_namespace())
     seen = sorted({fully_qualified(ns, n) for ends in publishers.values() for ns, n in ends})
     return Status(

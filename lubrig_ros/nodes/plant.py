@@ -30,7 +30,7 @@ pairs go out as <ns>/shadow_block (ShadowBlock) after each state_block; the publ
 messages are nodes/plant_outputs.py's. A reset (<ns>/plant/reset) starts a new segment at t = 0
 (stepped modes: its stamps and /clock go on from the old segment's end, never back) and reports
 it on flow_progress at once; <ns>/plant/pause pauses. Exit status 3 (EXIT_REAL_TIME_NOT_HELD)
-when a wall-clock run did not hold real time. Start-up: nothing runs for 1.5 s of discovery;
+when a wall-clock run did not hold real time. Start-up: nothing runs for `namespace_settle` s;
 another rig in the namespace ends the node (exit 2); band publishers besides `band_source` are
 WARNed (nodes/graph.py). Topics, QoS, parameters: app/interface/contract.py.
 """
@@ -167,8 +167,8 @@ class Plant(Node):
         self.out.config.publish(String(data=self.session.config.to_yaml()))
         self.out.complete.publish(Bool(data=False))
         # raw (serialized CDR) subscription: about 2x cheaper per message than a Float64 object
-        self._band_topics = [
-            create_subscription(self, n, cb, raw=n == "band_velocity").topic_name
+        self._band_readers = [
+            create_subscription(self, n, cb, raw=n == "band_velocity")
             for n, cb in (("band_velocity", self._on_band_raw), ("band_velocity_block", self._on_band_block))
         ]
         if self.shadow:  # raw as band_velocity: a malformed payload is NaN, rejected and counted
@@ -276,9 +276,9 @@ class Plant(Node):
     def _heartbeat(self) -> None:
         """Stepped modes: republish flow_progress (and /clock) so that a late belt_drive sees where we are.
 
-        Until the awaited subscriber (the recorder) has subscribed to every output, and each of
-        `state_subscribers` to state_block, the plant stays silent, so belt_drive does not start
-        and no sample is published before it is recorded (and analysed).
+        Silent until the awaited subscriber (the recorder) has subscribed to every output, each of
+        `state_subscribers` to state_block, and (with a `band_source`) a band reader has matched a
+        publisher: belt_drive does not start, and no sample is unrecorded, unanalysed or unread.
         Lockstep: the initial state once announced, and the newest state again while unanswered.
         """
         if not self._announced:
@@ -289,6 +289,8 @@ class Plant(Node):
             blocks = [self.out.block]
             if not all(delivers_to(self, blocks, n) for n in self.state_subscribers):
                 return
+            if self.band_source and not any(r.get_publisher_count() for r in self._band_readers):
+                return  # the declared source starts on the announcement: its first block must arrive
             self._announced = True
             self.get_logger().info(f"{self.mode}: flow_progress as {self.participant}")
             if self.mode == "lockstep":
@@ -460,7 +462,7 @@ class Plant(Node):
         else:  # the rig's time, not the node clock (that is /clock's echo, or 0 with --no-clock)
             array.header.stamp.sec, array.header.stamp.nanosec = self._stamp(self._rig_now())
         statuses = self.session.diagnostics()
-        statuses.append(band_source_status(self, self._band_topics, self.band_source, HARDWARE_ID))
+        statuses.append(band_source_status(self, self._band_readers, self.band_source, HARDWARE_ID))
         array.status = [common.diagnostic_status(s, self) for s in statuses]
         self.out.diagnostics.publish(array)
         self._log_problems.log(statuses)

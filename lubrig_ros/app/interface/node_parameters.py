@@ -15,7 +15,7 @@ from ...core import schema
 from ...core.friction_laws import DEFAULT_LAW, law_parameters
 from ...core.params import CONVENTION_CHOICES, CONVENTIONS
 from ...core.presets import CASE_NUMBERS
-from ..processes.discovery import GRAPH_SETTLE_S, LAUNCHED_SETTLE_S
+from ..processes.discovery import GRAPH_SETTLE_S
 from .parameter_types import NodeParameter as NodeParameter
 from .parameter_types import ParameterType as ParameterType
 from .parameter_types import field_parameter as _field
@@ -322,8 +322,8 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
             "double",
             GRAPH_SETTLE_S,
             "discovery time the start-up check watches the graph for another rig in the "
-            "namespace before the run may start; `lubrig rig`, which has watched it itself just "
-            f"before, gives {LAUNCHED_SETTLE_S:g} s",
+            "namespace before the run may start; 0: no check (`lubrig rig` gives 0: it has "
+            "watched the graph itself and holds the namespace until the rig's nodes stop)",
             unit="s",
             low=0.0,
             high=MAX_PERIOD_S,

@@ -89,10 +89,6 @@ UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
 #: 0.5 s (config/fastdds_localhost.xml; peers were seen 0.09-0.53 s after they were ready), so
 #: three announcement periods.
 GRAPH_SETTLE_S = 1.5
-#: s of discovery the plant's own check (nodes/graph.py) watches in a rig `lubrig rig` started:
-#: the launcher has watched GRAPH_SETTLE_S just before the nodes joined the graph, so what is left
-#: is a rig started meanwhile (whose own check sees this one too): one announcement period.
-LAUNCHED_SETTLE_S = 0.5
 
 Endpoint = tuple[str, str]  # (node namespace, node name)
 

@@ -14,7 +14,9 @@ What the plan decides, from the mode and whether the run is recorded:
   subscriptions are matched (`wait_for_subscriber`), and in sim belt_drive paces on the
   recorder's flow_progress (`required_consumers`) when the recorder reports it;
 - the plant's declared band source is belt_drive (`band_source`): any other publisher of band
-  input is reported by the plant;
+  input is reported by the plant, and a stepped plant announces itself only once its band reader
+  has matched a publisher; so belt_drive, which starts on that announcement, waits for no other
+  discovery (`start_delay` 0): every subscriber that must have the first band block is named;
 - sim: the plant holds the run until the analysis has subscribed to state_block
   (`state_subscribers`): it has the first samples however long its start-up takes;
 - start order (`after`): the plant starts once belt_drive and the analysis have printed their
@@ -38,6 +40,10 @@ NODES: tuple[str, ...] = ("plant", "belt_drive", "analysis")
 RECORDER_NODE_PREFIX = RECORDER_PARTICIPANT
 #: The plant's declared band source in a launched rig.
 BAND_SOURCE = "belt_drive"
+#: `lubrig rig`'s own node, <namespace>/LAUNCHER_NODE, on the graph from the namespace check until
+#: the rig's nodes have stopped: another launcher or a rig node starting meanwhile sees the
+#: namespace held (cli/rig_ros.py, nodes/graph.py NamespaceGuard).
+LAUNCHER_NODE = "lubrig_rig_launcher"
 #: What each process prints once it is set up (its start line).
 READY_LINES: dict[str, str] = {
     "recorder": "recorder: recording",
@@ -123,7 +129,7 @@ def rig_plan(
     clock = sim and publish_clock
     shared: dict[str, ParameterValue] = {"config_file": str(run_config), "use_sim_time": sim}
     plant: dict[str, ParameterValue] = {**shared, "mode": mode, "band_source": BAND_SOURCE}
-    belt: dict[str, ParameterValue] = {**shared, "mode": mode}
+    belt: dict[str, ParameterValue] = {**shared, "mode": mode, "start_delay": 0.0}
     if clock:
         plant["publish_clock"] = True
     if sim:  # the analysis takes every sample from the first: the run waits for its subscription
