@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from lubrig_testkit.crosscheck import read_rosbags
-from lubrig_testkit.harness import wait_until
+from lubrig_testkit.harness import run, wait_until
 
 from lubrig_interfaces.msg import BandVelocityBlock
 from lubrig_ros.app.interface import contract
@@ -40,7 +40,7 @@ def resolve_node(name: str) -> str:
     return contract.resolve(contract.DEFAULT_NAMESPACE, name)
 
 
-LUBRIG = (sys.executable, "-m", "lubrig_ros.cli.main")
+LUBRIG = [sys.executable, "-m", "lubrig_ros.cli.main"]
 DURATION = 400.0  # rig s: a sim run long enough (tens of wall s) for a second launcher meanwhile
 
 
@@ -137,13 +137,8 @@ def test_a_launchers_node_holds_the_namespace_until_it_leaves(ros_env, procs, tm
     try:
         assert presence.node.get_fully_qualified_name() == launcher
         # another `lubrig rig` there is refused, naming the launcher's node
-        second = subprocess.run(
-            [*LUBRIG, "rig", "--case", "7", "--duration", "1", "--run-dir", str(tmp_path / "second")],
-            env=ros_env,
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=False,
+        second = run(
+            [*LUBRIG, "rig", "--case", "7", "--duration", "1", "--run-dir", str(tmp_path / "second")], ros_env
         )
         assert second.returncode == 2, second.stdout + second.stderr
         lines = second.stderr.strip().splitlines()
