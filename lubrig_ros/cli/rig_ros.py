@@ -35,9 +35,8 @@ class LauncherPresence:
     """The launcher's context and node in `namespace`, made on first use, until `close`.
 
     The node is <namespace>/LAUNCHER_NODE: rigs in other namespaces on the domain each have
-    their own launcher node, not one name shared by several. No parameter services: nothing
-    spins it while the rig runs in wall-clock modes, and a service that never answers would stall
-    `ros2 param` callers.
+    their own launcher node, not one name shared by several. No services (nodes/common.py
+    `unspun_node`): nothing spins it during the check, nor while the rig runs in wall-clock modes.
 
     Without rclpy's signal handlers: a Ctrl-C reaches the launcher's Python handler directly (a
     KeyboardInterrupt in its main thread, which stops the rig). With them installed by the graph
@@ -53,15 +52,13 @@ class LauncherPresence:
         if self._made is None:
             import rclpy
             from rclpy.context import Context
-            from rclpy.node import Node
             from rclpy.signals import SignalHandlerOptions
+
+            from ..nodes.common import unspun_node
 
             context = Context()
             rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-            node = Node(
-                LAUNCHER_NODE, namespace=self.namespace, context=context, start_parameter_services=False
-            )
-            self._made = (context, node)
+            self._made = (context, unspun_node(LAUNCHER_NODE, self.namespace, context))
         return self._made
 
     @property

@@ -294,6 +294,23 @@ def steady_timer(node: Node, period: float, callback: Callable[[], None]) -> Any
     return node.create_timer(period, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
 
+def unspun_node(name: str, namespace: str, context: Any = None, overrides: Iterable[Parameter] = ()) -> Node:
+    """A node that nothing spins all the time (the launcher's, the recorder's progress node): no services.
+
+    A service nobody answers stalls its callers: `ros2 param list` waited forever on the
+    recorder's node once it had found its parameter services. So neither those nor the type
+    description service.
+    """
+    quiet = Parameter("start_type_description_service", Parameter.Type.BOOL, False)
+    return Node(
+        name,
+        namespace=namespace,
+        context=context,
+        start_parameter_services=False,
+        parameter_overrides=[*overrides, quiet],
+    )
+
+
 def uses_sim_time(node: Node) -> bool:
     """The node's standard use_sim_time parameter (its ROS clock follows /clock when true)."""
     return bool(node.get_parameter("use_sim_time").value)

@@ -69,18 +69,17 @@ CATCH_UP_S = 5.0
 
 
 class ProgressNode:
-    """The recorder process's own node <namespace>/lubrig_recorder: FlowProgress and /rosout."""
+    """The recorder process's own node <namespace>/lubrig_recorder: FlowProgress and /rosout (not spun)."""
 
     def __init__(self, namespace: str, use_sim_time: bool) -> None:
         import rclpy
         from rclpy.signals import SignalHandlerOptions
 
+        from lubrig_ros.nodes.common import unspun_node
         from lubrig_ros.nodes.interfaces import message_class, qos_profile
 
         rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
-        self.node: Any = rclpy.create_node(
-            RECORDER_NODE, namespace=namespace, parameter_overrides=sim_time_overrides(use_sim_time)
-        )
+        self.node: Any = unspun_node(RECORDER_NODE, namespace, overrides=sim_time_overrides(use_sim_time))
         spec = documented_topics(namespace)[resolve(namespace, "flow_progress")]
         self.cls = message_class(spec.msgtype)
         self.pub: Any = self.node.create_publisher(self.cls, spec.name, qos_profile(spec.qos))
