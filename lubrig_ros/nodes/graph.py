@@ -3,7 +3,7 @@
 The rules are ROS-free (app/processes/discovery.py: `rig_occupants`, `extra_publishers`,
 `band_source_problem`); this module asks rclpy for the graph and acts on the answer:
 
-- `NamespaceGuard`: a node's start-up (the plant's). For GRAPH_SETTLE_S of discovery it looks for
+- `NamespaceGuard`: a node's start-up (the plant's). For `settle` s of discovery it looks for
   another node of its own name, another publisher of its outputs, or a `lubrig rig` launcher's
   node in its namespace (another rig there, or starting: two `lubrig rig` without --namespace).
   Found: one FATAL line naming them, and the node ends with exit status 2. Not found: `clear`
@@ -13,6 +13,8 @@ The rules are ROS-free (app/processes/discovery.py: `rig_occupants`, `extra_publ
   band input besides the declared source (every mode; the plant's diagnostics carry it).
 - `delivers_to`: whether a sample published now reaches a named node (its subscriptions
   discovered and matched by the publishers).
+- `reads_source` / `await_source`: whether a sample of the declared band source reaches a band
+  reader (the reader's half of a match); hold a wall-clock loop until it does.
 - `await_subscriber`: hold a wall-clock loop until a named node has subscribed and reported.
 """
 
@@ -191,6 +193,51 @@ def delivers_to(node: Node, publishers: Sequence[Any], prefix: str) -> bool:
     """
     matched = all(matched_every_subscription(node, p) for p in publishers)
     return matched and (not prefix or subscribed_by(node, publishers, prefix))
+
+
+def reads_source(node: Node, readers: Sequence[Any], source: str) -> bool:
+    """True when a sample the declared band `source` sends now reaches one of the `readers`.
+
+    `source`: a node name in `node`'s namespace or a fully qualified one. It publishes on the
+    reader's topic, and the reader has matched every discovered publisher of it that it can
+    match: a reader drops what a writer sends before the reader has matched that writer
+    (volatile), whether or not the writer has matched the reader (the other half: the writer's
+    `delivers_to`). Another publisher's match alone (a view's, a stray one's) does not pass.
+    """
+    expected = source if source.startswith("/") else fully_qualified(node.get_namespace(), source)
+    own_name = (node.get_name(), node.get_namespace())
+    for reader in readers:
+        topic = reader.topic_name
+        own = [
+            i
+            for i in node.get_subscriptions_info_by_topic(topic)
+            if (i.node_name, i.node_namespace) == own_name
+        ]
+        writers = [
+            i for i in node.get_publishers_info_by_topic(topic) if own and i.topic_type == own[0].topic_type
+        ]
+        if expected not in (fully_qualified(i.node_namespace, i.node_name) for i in writers):
+            continue
+        compatible = sum(
+            1
+            for i in writers
+            if qos_check_compatible(i.qos_profile, own[0].qos_profile)[0] != QoSCompatibility.ERROR
+        )
+        if reader.get_publisher_count() >= compatible:
+            return True
+    return False
+
+
+def await_source(node: Node, readers: Sequence[Any], source: str, stop: threading.Event) -> bool:
+    """Hold a wall-clock loop until the band `source` reaches a reader (`reads_source`); False if `stop`."""
+    waited = time.monotonic()
+    while not reads_source(node, readers, source):
+        if stop.wait(0.05):
+            return False
+        if time.monotonic() - waited > 5.0:
+            waited = time.monotonic()
+            node.get_logger().info(f"{node.get_name()}: waiting for band input from {source} (band_source)")
+    return True
 
 
 def await_subscriber(

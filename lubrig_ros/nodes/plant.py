@@ -68,8 +68,8 @@ from ..app.plant.session import (
     runtime_parameters,
 )
 from ..core.params import ParameterError
-from . import common, scheduling
-from .graph import NamespaceGuard, await_subscriber, band_source_status, delivers_to
+from . import common, graph, scheduling
+from .graph import NamespaceGuard, await_source, await_subscriber, band_source_status, delivers_to
 from .interfaces import create_service, create_subscription, report_callers
 from .plant_outputs import PlantOutputs
 
@@ -277,9 +277,9 @@ class Plant(Node):
         """Stepped modes: republish flow_progress (and /clock) so that a late belt_drive sees where we are.
 
         Silent until the awaited subscriber (the recorder) has subscribed to every output, each of
-        `state_subscribers` to state_block, and (with a `band_source`) a band reader has matched a
-        publisher: belt_drive does not start, and no sample is unrecorded, unanalysed or unread.
-        Lockstep: the initial state once announced, and the newest state again while unanswered.
+        `state_subscribers` to state_block, and band_source reaches a band reader: belt_drive does
+        not start, and no sample is unrecorded, unanalysed or unread. Lockstep: the initial state
+        once announced, and the newest state again while unanswered.
         """
         if not self._announced:
             if not self._clear.is_set():
@@ -289,7 +289,7 @@ class Plant(Node):
             blocks = [self.out.block]
             if not all(delivers_to(self, blocks, n) for n in self.state_subscribers):
                 return
-            if self.band_source and not any(r.get_publisher_count() for r in self._band_readers):
+            if self.band_source and not graph.reads_source(self, self._band_readers, self.band_source):
                 return  # the declared source starts on the announcement: its first block must arrive
             self._announced = True
             self.get_logger().info(f"{self.mode}: flow_progress as {self.participant}")
@@ -405,17 +405,13 @@ class Plant(Node):
         self._state_sent = time.monotonic()
 
     def _await_subscriber(self) -> bool:
-        """Wall-clock modes with wait_for_subscriber: hold the loop until that node takes the blocks."""
+        """Wall-clock modes: hold the loop until band_source reaches it, wait_for_subscriber reports."""
+        if self.band_source and not await_source(self, self._band_readers, self.band_source, self._stop):
+            return False
         if not self.wait_for_subscriber:
             return True
-        return await_subscriber(
-            self,
-            self.out.blocks(),
-            self.wait_for_subscriber,
-            self._stop,
-            lambda: self._heard_awaited,
-            AWAIT_PROGRESS_S,
-        )
+        waiting = (self.out.blocks(), self.wait_for_subscriber, self._stop, lambda: self._heard_awaited)
+        return await_subscriber(self, *waiting, AWAIT_PROGRESS_S)
 
     def _realtime_loop(self) -> None:
         priority = int(self.get_parameter("realtime_priority").value)

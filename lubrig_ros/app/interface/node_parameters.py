@@ -315,7 +315,9 @@ def plant_parameters(law: str = DEFAULT_LAW) -> tuple[NodeParameter, ...]:
             "",
             "the declared band source: node name (in the plant's namespace) or fully qualified name "
             "of the one publisher of band input (the launchers: belt_drive); any other publisher "
-            "is reported (band sources WARN, naming it); empty: any one publisher",
+            "is reported (band sources WARN, naming it); set, the run starts (sim: the plant "
+            "announces itself; wall clock: its loop starts) once a band reader has matched it; "
+            "empty: any one publisher",
         ),
         _p(
             "namespace_settle",
