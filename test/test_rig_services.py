@@ -30,17 +30,8 @@ def _rig_nodes(probe) -> list[str]:
 
 def test_every_service_of_a_running_rig_answers(procs, probe, tmp_path: Path) -> None:
     run = tmp_path / "run"
-    rig = procs.script(
-        "lubrig",
-        "rig",
-        "--mode",
-        "realtime",
-        "--duration",
-        str(DURATION),
-        "--run-dir",
-        str(run),
-        "--no-report",
-    )
+    argv = ["rig", "--mode", "realtime", "--duration", str(DURATION), "--run-dir", str(run), "--no-report"]
+    rig = procs.script("lubrig", *argv)
     plant_log = run / "logs" / "plant.log"
     wait_until(
         lambda: plant_log.exists() and READY_LINES["plant_loop"] in plant_log.read_text(),
