@@ -290,8 +290,21 @@ def steady_timer(node: Node, period: float, callback: Callable[[], None]) -> Any
     node's ROS clock: with use_sim_time that clock stands still until /clock moves, and in a sim
     rig /clock only moves once those timers have started the run (they announce the plant,
     start belt_drive); with --no-clock it never moves at all.
+
+    A stop (SIGINT: rclpy shuts the context down under the running executor) can land inside a
+    callback, whose next publish or graph query then raises RuntimeError ("context is invalid");
+    that is the stop, not a failure of the callback, and it ends quietly (the executor would log
+    it as FATAL). Any other RuntimeError is raised.
     """
-    return node.create_timer(period, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def tick() -> None:
+        try:
+            callback()
+        except RuntimeError:
+            if not _stopping(0.5, node.context):  # the shutdown may still be in flight for a moment
+                raise
+
+    return node.create_timer(period, tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
 
 def unspun_node(name: str, namespace: str, context: Any = None, overrides: Iterable[Parameter] = ()) -> Node:
@@ -321,10 +334,10 @@ def finite(value: float) -> bool:
     return isinstance(value, float | int) and math.isfinite(value)
 
 
-def _stopping(wait: float) -> bool:
-    """True once the rclpy context is shut down, polling up to `wait` s."""
+def _stopping(wait: float, context: Any = None) -> bool:
+    """True once the rclpy context (default: rclpy's) is shut down, polling up to `wait` s."""
     end = time.monotonic() + wait
-    while rclpy.ok():
+    while context.ok() if context is not None else rclpy.ok():
         if time.monotonic() >= end:
             return False
         time.sleep(0.01)
