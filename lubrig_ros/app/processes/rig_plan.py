@@ -14,9 +14,10 @@ What the plan decides, from the mode and whether the run is recorded:
   subscriptions are matched (`wait_for_subscriber`), and in sim belt_drive paces on the
   recorder's flow_progress (`required_consumers`) when the recorder reports it;
 - the plant's declared band source is belt_drive (`band_source`): any other publisher of band
-  input is reported by the plant, and a stepped plant announces itself only once its band reader
-  has matched a publisher; so belt_drive, which starts on that announcement, waits for no other
-  discovery (`start_delay` 0): every subscriber that must have the first band block is named;
+  input is reported by the plant, and the plant starts its run only once a band reader has
+  matched belt_drive (sim: it announces itself then; realtime: its loop starts then); so
+  belt_drive, which starts on that announcement, waits for no other discovery (`start_delay`
+  0): every subscriber that must have the first band block is named;
 - sim: the plant holds the run until the analysis has subscribed to state_block
   (`state_subscribers`): it has the first samples however long its start-up takes;
 - start order (`after`): the plant starts once belt_drive and the analysis have printed their
