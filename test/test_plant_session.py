@@ -285,6 +285,25 @@ def test_staleness_follows_the_input_age():
     assert not session.stale()
 
 
+def test_realtime_input_sent_ahead_is_stale_only_once_the_plant_holds():
+    """realtime: band values come in blocks ahead of their samples; in hand, they are not stale."""
+    clock = FakeClock()
+    rec = Recorder()
+    session = rec.session(default_config(), mode="realtime", clock=clock, stale_timeout=0.05)
+    session.emit_initial()
+    assert session.band_block([1e-7] * 200, segment=0, first_sample_index=0) == 200
+    for _ in range(150):  # 0.15 s after the block came, its values still in hand
+        clock.now += 0.001
+        session.tick()
+    assert not session.stale() and session.held_samples == 0
+    for _ in range(100):  # the values run out at sample 200: the plant holds from then
+        clock.now += 0.001
+        session.tick()
+    assert session.held_samples == 50 and session.stale()
+    status = {s.name: s for s in session.diagnostics()}["band input"].as_dict()
+    assert "stale input, holding last good value" in status["_message"]
+
+
 def test_sim_is_never_stale(case1):
     config, _ = case1
     session = Recorder().session(config, clock=FakeClock())

@@ -332,6 +332,10 @@ class IndexedRules(WallClockRules):
                 s.held_samples += 1
             return s.latest_band, None
         s.latest_band = value
+        # the input is as fresh as the newest value in hand for a sample: sent ahead in blocks
+        # (belt_drive tops up with each flow_progress, 0.1 s apart), it is stale only once the
+        # plant holds, not while it takes values that came a while ago
+        s.latest_band_recv = s.clock()
         return value, None
 
     @override
