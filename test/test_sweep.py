@@ -361,10 +361,14 @@ def test_steady_sliding_has_no_dominant_frequency():
             "axes": [{"parameter": "band.velocity", "values": [1e-6]}],
         }
     )
+    from lubrig_ros.core.integrator import RigIntegrator
     from lubrig_ros.sweep import run_point
+    from lubrig_ros.sweep.point import STEADY_RELATIVE_PTP
 
     record = run_point(spec.points[0])
-    assert record["status"] == "ok" and record["x_peak_to_peak"] == 0.0
+    settled = RigIntegrator(from_mapping(spec.points[0].config).rig, 1e-6).equilibrium_displacement
+    # settled to rounding: the stage solve stops within its tolerance, not on an exact fixed point
+    assert record["status"] == "ok" and record["x_peak_to_peak"] <= STEADY_RELATIVE_PTP * settled
     assert record["dominant_frequency_hz"] is None and record["wavelet_frequency_hz"] is None
     assert "constant in the window" in record["wavelet_error"] and record["linear_stable"] is True
 

@@ -54,6 +54,10 @@ class RigIntegrator:
     #: longest step in sample periods: a step spans samples where the band is a line (stepper.py);
     #: a new value applies to the steps begun after it is set
     max_step_samples: int = 256
+    #: Newton iterations every stage solve takes at least: 1 (the first iterate is accepted when
+    #: the last solve's contraction says it is converged), or 2 (never the first: the result is
+    #: then a smooth function of the parameters, which forward differences need; fit/shooting.py)
+    min_newton_iterations: int = 1
     _state: np.ndarray = field(init=False, repr=False)
     _rig_array: np.ndarray = field(init=False, repr=False)
     _fp: np.ndarray = field(init=False, repr=False)
@@ -71,7 +75,7 @@ class RigIntegrator:
             setattr(self, name, value)
         if self.sample_rate <= 0.0:
             raise InputError(f"sample_rate={self.sample_rate!r} must be > 0 Hz")
-        self._check_span()
+        self._check_settings()
         if not 1e-13 <= self.rtol <= 1e-2:
             raise InputError(f"rtol={self.rtol!r} is outside the valid range [1e-13, 1e-2]")
         self._rig_array = np.array([float(getattr(self.rig, name)) for name in RIG_LAYOUT])
@@ -114,11 +118,14 @@ class RigIntegrator:
             float(time), x_start, float(self.initial_velocity), self.initial_band_velocity, self.dt
         )
 
-    def _check_span(self) -> None:
-        """InputError unless max_step_samples is an integer >= 1 (checked on every call: settable)."""
+    def _check_settings(self) -> None:
+        """InputError for a bad max_step_samples or min_newton_iterations (settable: every call)."""
         span = self.max_step_samples
         if isinstance(span, bool) or not isinstance(span, int) or span < 1:
             raise InputError(f"max_step_samples={span!r} must be an integer >= 1")
+        newton = self.min_newton_iterations
+        if isinstance(newton, bool) or newton not in (1, 2):
+            raise InputError(f"min_newton_iterations={newton!r} must be 1 or 2")
 
     def _check_resolved(self, band_velocity: float) -> None:
         """ValueError for a band at rest in all but name: 0 < |v| below the velocity tolerance.
@@ -242,7 +249,7 @@ class RigIntegrator:
 
     def _step(self, band: np.ndarray, max_attempts: int, out_x: np.ndarray, out_w: np.ndarray) -> int:
         """The compiled stepper over `band` into out_x/out_w; the samples completed."""
-        self._check_span()
+        self._check_settings()
         atol_x, atol_w = self._atol
         self._state[BUDGET] = float(max_attempts)
         status = self._stepper(
@@ -259,6 +266,7 @@ class RigIntegrator:
             _C,
             _E,
             float(self.max_step_samples),
+            float(self.min_newton_iterations),
             out_x,
             out_w,
         )

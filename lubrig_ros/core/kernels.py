@@ -80,6 +80,9 @@ _A = np.array(
 )
 _A2 = _A @ _A
 _E = np.array([-13.0 - 7.0 * _S6, -13.0 + 7.0 * _S6, -1.0]) / 3.0
+_P00, _P01, _P02 = 13.0 / 3.0 + 7.0 * _S6 / 3.0, -23.0 / 3.0 - 22.0 * _S6 / 3.0, 10.0 / 3.0 + 5.0 * _S6
+_P10, _P11, _P12 = 13.0 / 3.0 - 7.0 * _S6 / 3.0, -23.0 / 3.0 + 22.0 * _S6 / 3.0, 10.0 / 3.0 - 5.0 * _S6
+_P20, _P21, _P22 = 1.0 / 3.0, -8.0 / 3.0, 10.0 / 3.0
 _MU_REAL = 3.0 + 3.0 ** (2.0 / 3.0) - 3.0 ** (1.0 / 3.0)
 #: Newton iterations before a stage solve counts as failed (the step is then halved). Converged
 #: solves took at most 14 (the trust region below allows a factor 4 in |v_rel| per iteration) on
@@ -98,7 +101,7 @@ RIG_LAYOUT = ("mass", "damping", "stiffness", "velocity_factor", "normal_force")
 RIG_SIZE = len(RIG_LAYOUT)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _solve3(a: np.ndarray, b: np.ndarray, x: np.ndarray) -> None:
     """Solve the 3x3 system a x = b by Gaussian elimination with partial pivoting (a, b destroyed)."""
     for col in range(3):
@@ -135,9 +138,7 @@ def _radau_step_py(  # noqa: C901
     vb1: float,
     rig: np.ndarray,
     fp: np.ndarray,
-    rtol: float,
-    atol_x: float,
-    atol_w: float,
+    tol: np.ndarray,
     aa: np.ndarray,
     a2: np.ndarray,
     cc: np.ndarray,
@@ -145,13 +146,22 @@ def _radau_step_py(  # noqa: C901
     work: np.ndarray,
     jac: np.ndarray,
     refine: bool,
-) -> tuple[bool, float, float, float]:
-    """One Radau IIA step of size h from t; returns (accepted, x_new, w_new, error_norm).
+    newton: tuple[float, float],
+    last_step: tuple[float, float, float, float],
+) -> tuple[bool, float, float, float, float]:
+    """One Radau IIA step of size h from t; returns (accepted, x_new, w_new, error_norm, rate).
 
-    work (8x3) and jac (3x3) are scratch space, allocated once per advance() call. refine: the
-    attempt follows a rejected one from a corner of the band (its error estimate may then be
-    refined, see below).
+    tol: (rtol, atol_x, atol_w). work (8x3) and jac (3x3) are scratch space, allocated once per
+    advance() call. refine: the attempt follows a rejected one from a corner of the band (its
+    error estimate may then be refined, see below). newton: (min_newton, rate): 1, or 2 to never
+    accept the first Newton iterate (the result is then a smooth function of the parameters, see
+    below), and the last stage solve's contraction estimate (state NEWTON_RATE), returned
+    updated. last_step: the last accepted step's length (0: none) and ẋ stage increments, whose
+    collocation polynomial predicts this step's stages.
     """
+    rtol, atol_x, atol_w = tol[0], tol[1], tol[2]
+    min_newton, rate = newton
+    last_h, last0, last1, last2 = last_step
     mass, damp, stiff = rig[RIG_MASS], rig[RIG_DAMPING], rig[RIG_STIFFNESS]
     gamma, normal = rig[RIG_VELOCITY_FACTOR], rig[RIG_NORMAL_FORCE]
     slope_vb = (vb1 - vb0) / dt
@@ -168,9 +178,11 @@ def _radau_step_py(  # noqa: C901
     for i in range(3):
         vb[i] = vb0 + slope_vb * (t + cc[i] * h - t0)
     # Newton on the stage velocities W (displacements X = x + h A W). Predictor: a sliding mass
-    # keeps its velocity; a stuck one (|v_rel| ≪ v_band) keeps its relative velocity, i.e. moves
-    # with the band. Starting a stuck mass at constant ẋ would put the stages on the unstable
-    # zone-2 branch, which has the same μ and is a spurious root of the stage equations.
+    # follows the last step's collocation polynomial extrapolated (Hairer & Wanner IV.8, as
+    # radau5), or, without a last step, its explicit-Euler velocity; a stuck one (|v_rel| ≪
+    # v_band) keeps its relative velocity, i.e. moves with the band. Starting a stuck mass at
+    # constant ẋ would put the stages on the unstable zone-2 branch, which has the same μ and is a
+    # spurious root of the stage equations.
     vb_now = vb0 + slope_vb * (t - t0)
     rel_now = vb_now - gamma * w
     stuck = abs(rel_now) < 1e-3 * abs(vb_now)
@@ -179,11 +191,28 @@ def _radau_step_py(  # noqa: C901
         dmu0 = 1e300
     f_w = (normal * mu0 - damp * w - stiff * x) / mass
     for i in range(3):
-        # sliding: explicit-Euler velocity; stuck: follow the band
-        wst[i] = w + (vb[i] - vb_now) / gamma if stuck else w + cc[i] * h * f_w
+        if stuck:
+            wst[i] = w + (vb[i] - vb_now) / gamma
+        elif last_h > 0.0:  # y(t + c_i h) on the last step's polynomial: θ = 1 + c_i h / last_h
+            th = 1.0 + cc[i] * h / last_h
+            th2 = th * th
+            th3 = th2 * th
+            wst[i] = (
+                w
+                - last2
+                + last0 * (_P00 * th + _P01 * th2 + _P02 * th3)
+                + last1 * (_P10 * th + _P11 * th2 + _P12 * th3)
+                + last2 * (_P20 * th + _P21 * th2 + _P22 * th3)
+            )
+        else:
+            wst[i] = w + cc[i] * h * f_w
     converged = False
     norm_old = -1.0  # no unclamped increment on this step yet: no contraction rate
-    for _ in range(_NEWTON_MAXITER):
+    # the last solve's rate, raised to 3/4 (radau5 raises it to 0.8: a little above the last rate;
+    # two square roots instead of a power)
+    faccon = math.sqrt(max(rate, 2.2e-16))
+    faccon *= math.sqrt(faccon)
+    for iteration in range(_NEWTON_MAXITER):
         for j in range(3):
             xj = x + h * (aa[j, 0] * wst[0] + aa[j, 1] * wst[1] + aa[j, 2] * wst[2])
             mu, dmu = _LAW(vb[j] - gamma * wst[j], fp)
@@ -203,7 +232,7 @@ def _radau_step_py(  # noqa: C901
         norm = 0.0
         for i in range(3):
             if not math.isfinite(delta[i]):
-                return False, x, w, math.inf
+                return False, x, w, math.inf, faccon
             old_rel = vb[i] - gamma * wst[i]
             new_w = wst[i] + delta[i]
             new_rel = vb[i] - gamma * new_w
@@ -224,16 +253,23 @@ def _radau_step_py(  # noqa: C901
             wst[i] = new_w
         # Stop when the remaining error, estimated from the contraction rate θ = ‖Δ_k‖ / ‖Δ_k−1‖ of
         # two successive unclamped increments (Hairer & Wanner IV.8), is a small fraction of the
-        # tolerance. θ needs two increments of this step: the first iterate is never accepted on
-        # its own (its size says nothing about the error left), nor the first after a clamped one.
+        # tolerance. On the first iterate, θ is the last solve's (as radau5 does): a sliding mass,
+        # predicted from the last step, then takes one iteration instead of two. Never the first
+        # after a clamped one, and with min_newton 2 never the first: whether one iteration
+        # suffices changes by jumps with the parameters, and the fit's forward differences
+        # (fit/shooting.py) would read those jumps, below the tolerance, as information.
         if clamped:
             norm_old = -1.0
             continue
         if norm == 0.0:
             converged = True
             break
+        if iteration == 0 and min_newton < 2.0 and faccon * norm <= _NEWTON_TOL:
+            converged = True
+            break
         if norm_old > 0.0:
             theta = norm / norm_old
+            faccon = theta / (1.0 - theta) if theta < 0.99 else 99.0
             if theta < 1.0 and norm * theta / (1.0 - theta) <= _NEWTON_TOL:
                 converged = True
                 break
@@ -243,7 +279,7 @@ def _radau_step_py(  # noqa: C901
                 break
         norm_old = norm
     if not converged:
-        return False, x, w, math.inf
+        return False, x, w, math.inf, faccon
     for i in range(3):
         zx[i] = h * (aa[i, 0] * wst[0] + aa[i, 1] * wst[1] + aa[i, 2] * wst[2])
         zw[i] = wst[i] - w
@@ -299,8 +335,8 @@ def _radau_step_py(  # noqa: C901
             size_w = max(size_w, abs(r_w / diag))
         err = math.sqrt(0.5 * ((size_x / sx) ** 2 + (size_w / sw) ** 2))
     if not math.isfinite(err):
-        return False, x, w, math.inf
-    return err <= 1.0, x_new, w_new, err
+        return False, x, w, math.inf, faccon
+    return err <= 1.0, x_new, w_new, err, faccon
 
 
 class _LawLocator(_caching._CacheLocator):
@@ -367,8 +403,8 @@ def _clone(function: Any, tag: str, bound: dict[str, Any], files: tuple[str, ...
 def specialize(kernel: Any) -> tuple[Any, Any]:
     """(stepper, evaluator) compiled for one law kernel, inlined, cached by both files.
 
-    stepper(state, band, dt, rig, fp, rtol, atol_x, atol_w, A, A2, C, E, max_span, out_x, out_w)
-    -> status (core.stepper's sample loop around this file's Radau step); evaluator(v, p) -> (μ,
+    stepper(state, band, dt, rig, fp, rtol, atol_x, atol_w, A, A2, C, E, max_span, min_newton, out_x,
+    out_w) -> status (core.stepper's sample loop around this file's Radau step); evaluator(v, p) -> (μ,
     dμ/dv) for contiguous float64 arrays. The integrator binds both once (a per-sample call then
     costs what it did with one built-in law). The loop's cache is keyed on the law's file and this
     one too: it inlines the step compiled from here.
@@ -377,7 +413,8 @@ def specialize(kernel: Any) -> tuple[Any, Any]:
     kernel = getattr(kernel, "dispatcher", kernel)  # a LawKernel compiles here, when first used
     files = (os.path.abspath(inspect.getfile(py_func)),)
     tag = re.sub(r"\W", "_", f"{py_func.__module__}.{py_func.__qualname__}")
-    step = njit(cache=True)(_clone(_radau_step_py, tag, {"_LAW": kernel}, files))
+    inlined = njit(inline="always")(py_func)
+    step = njit(cache=True)(_clone(_radau_step_py, tag, {"_LAW": inlined}, files))
     loop_files = (*files, os.path.abspath(__file__))
     land = njit(cache=True)(_clone(stepper_module._land_py, tag, {"_STEP": step}, loop_files))
     stepper = njit(cache=True)(_clone(stepper_module._advance_py, tag, {"_LAND": land}, loop_files))

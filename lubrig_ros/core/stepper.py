@@ -51,7 +51,13 @@ STAGES = 16  # its stage increments: x at 16..18, ẋ at 19..21
 LINE_T0, LINE_V0, LINE_V1 = 22, 23, 24  # its band line: through (t0, v0) and (t0 + dt, v1)
 REDO = 25  # NaN, or the time a step found invalid is being integrated again to
 RETRY = 26  # 1 when the last step attempt was rejected (the next one may refine its error estimate)
-STATE_SIZE = 27
+#: The stage solve's last contraction estimate θ/(1 − θ) (Hairer & Wanner's FACCON; 1 at the start):
+#: the next step's first Newton iterate is accepted when it times the iterate's size is small.
+NEWTON_RATE = 27
+#: The last accepted step's length (0: none to extrapolate, after a restart) and its ẋ stage
+#: increments (28..30): the next step's stages are predicted from its collocation polynomial.
+LAST_H, LAST_STAGES = 28, 29
+STATE_SIZE = 32
 
 #: A sample is on the band's line when it is within this fraction of the larger of its own and
 #: the line's magnitudes (a profile's ramp computed in floating point is straight to a few ulp).
@@ -79,7 +85,7 @@ def _factor(err: float) -> float:
     """Step size factor from an error norm (order 5: the 1/4 power, as scipy's Radau)."""
     if not math.isfinite(err):
         return 0.5
-    factor = 0.9 * err ** (-0.25) if err > 0.0 else _MAX_FACTOR
+    factor = 0.9 / math.sqrt(math.sqrt(err)) if err > 0.0 else _MAX_FACTOR
     return min(_MAX_FACTOR, max(_MIN_FACTOR, factor))
 
 
@@ -123,7 +129,12 @@ def _land_py(
     line: tuple[float, float, float, float, bool],
     speculate: bool,
     run: tuple[
-        np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], float
+        np.ndarray,
+        np.ndarray,
+        np.ndarray,
+        tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+        float,
+        float,
     ],
     scratch: tuple[np.ndarray, np.ndarray],
     attempts: float,
@@ -132,15 +143,15 @@ def _land_py(
 
     line: (t0, v0, v1, dt, corner), the band through (t0, v0) and (t0 + dt, v1), and whether its
     slope changes at t0 (a step from there, rejected, refines its error estimate); run: (rig, fp, tol,
-    tableau, max_h), what every step of the call shares; scratch: (work, jac). Returns (status,
+    tableau, max_h, min_newton), what every step of the call shares; scratch: (work, jac). Returns (status,
     attempts, passed): passed means a speculative step now pends (PENDING, END_*, STAGES set;
     STEP_* its start).
     """
     t0, v0, v1, dt, corner = line
-    rig, fp, tol, tableau, max_h = run
+    rig, fp, tol, tableau, max_h, min_newton = run
     work, jac = scratch
     aa, a2, cc, ee = tableau
-    rtol, atol_x, atol_w, budget = tol[0], tol[1], tol[2], state[BUDGET]
+    budget = state[BUDGET]
     ts, x, w, h = state[STEP_T], state[STEP_X], state[STEP_W], min(state[H], max_h)
     while ts < target:
         if budget > 0.0 and attempts >= budget:
@@ -152,8 +163,10 @@ def _land_py(
         ahead = last and speculate and h > remaining * (1.0 + 1e-9)
         step = h if (ahead or not last) else remaining
         refine = corner and ts == t0 and state[RETRY] != 0.0
-        accepted, x_new, w_new, err = _STEP(
-            x, w, ts, step, t0, dt, v0, v1, rig, fp, rtol, atol_x, atol_w, aa, a2, cc, ee, work, jac, refine
+        newton = (min_newton, state[NEWTON_RATE])
+        last_step = (state[LAST_H], state[LAST_STAGES], state[LAST_STAGES + 1], state[LAST_STAGES + 2])
+        accepted, x_new, w_new, err, state[NEWTON_RATE] = _STEP(
+            x, w, ts, step, t0, dt, v0, v1, rig, fp, tol, aa, a2, cc, ee, work, jac, refine, newton, last_step
         )
         factor = _factor(err)
         state[RETRY] = 0.0 if accepted else 1.0
@@ -163,6 +176,9 @@ def _land_py(
                 return STEP_TOO_SMALL, attempts, False
             continue
         state[SUBSTEPS] += 1.0
+        state[LAST_H] = step
+        for i in range(3):
+            state[LAST_STAGES + i] = work[7, i]
         h_new = step * factor
         if last and not ahead and step < h and factor >= 1.0:
             h_new = max(h, h_new)  # a step cut short to land on the target says little
@@ -195,19 +211,21 @@ def _advance_py(
     cc: np.ndarray,
     ee: np.ndarray,
     max_span: float,
+    min_newton: float,
     out_x: np.ndarray,
     out_w: np.ndarray,
 ) -> int:
     """Advance over len(band) samples (band[k] at T + (k+1)·dt); state is updated in place.
 
-    Steps are at most max_span samples long. On failure (STEP_TOO_SMALL) the state is that of the
+    Steps are at most max_span samples long; every stage solve takes at least min_newton (1 or 2)
+    Newton iterations (kernels._radau_step_py). On failure (STEP_TOO_SMALL) the state is that of the
     last completed sample, so a caller can carry on from the sample grid. With a budget
     (state[BUDGET] > 0 step attempts) a call that spends it inside a sample returns BUDGET_SPENT:
     the next call with the same band value finishes that sample first (a resumed sample gives the
     same result as one integrated in one call). state[COMPLETED] counts the samples this call wrote
     to out_x/out_w.
     """
-    run = (rig, fp, np.array([rtol, atol_x, atol_w]), (aa, a2, cc, ee), max_span * dt)
+    run = (rig, fp, np.array([rtol, atol_x, atol_w]), (aa, a2, cc, ee), max_span * dt, min_newton)
     scratch = (np.empty((8, 3)), np.empty((3, 3)))
     attempts = 0.0
     for k in range(band.size):
@@ -235,6 +253,7 @@ def _advance_py(
                 state[REDO] = t_prev  # valid up to the previous sample only
         if not math.isnan(state[REDO]):
             line = (state[LINE_T0], state[LINE_V0], state[LINE_V1], dt, False)
+            state[LAST_H] = 0.0
             status, attempts, _ = _LAND(state, state[REDO], line, False, run, scratch, attempts)
             if status != OK:
                 return _stop(state, status, dt)
@@ -268,6 +287,7 @@ def _stop(state: np.ndarray, status: int, dt: float) -> int:
     state[REDO] = math.nan
     state[PARTIAL_T0] = math.nan
     state[RETRY] = 0.0
+    state[LAST_H] = 0.0
     state[H] = 0.1 * dt
     return status
 
@@ -280,4 +300,5 @@ def initial_state(time: float, x: float, w: float, band_velocity: float, dt: flo
     state[PREV_BAND] = math.nan
     state[STEP_T], state[STEP_X], state[STEP_W] = time, x, w
     state[REDO] = math.nan
+    state[NEWTON_RATE] = 1.0
     return state

@@ -34,7 +34,7 @@ from ..figures import style
 from ..figures.curves import plot_stability_map, save_figure
 from .data import MeasuredData
 from .parameters import fixed_values
-from .shooting import FIT_STEP_SAMPLES
+from .shooting import FIT_INTEGRATION
 from .solve import FitResult
 
 #: Every file `lubrig fit` writes into --out (replaced with --force).
@@ -59,7 +59,7 @@ def fitted_run(result: FitResult, data: MeasuredData) -> Trajectory:
         float(data.band_velocity[0]),
         sample_rate=data.sample_rate,
         rtol=result.config.rtol,
-        max_step_samples=FIT_STEP_SAMPLES,
+        **FIT_INTEGRATION,
         initial_displacement=float(result.initial_state[0]),
         initial_velocity=float(result.initial_state[1]),
     )

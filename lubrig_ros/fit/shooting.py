@@ -49,13 +49,16 @@ STEP = 1e-6
 #: A data residual that moves by more than this (noise units) over one forward-difference step has
 #: crossed a discontinuity (see jacobian_from); a slope that steep is no slope of the model.
 JUMP = 0.5
-#: Longest integrator step, in samples: every step ends on a sample. A step spanning samples
-#: (core/stepper.py) puts them on its collocation polynomial, whose error, below the tolerance,
-#: changes by jumps when a parameter moved by STEP changes the step sequence; forward differences
-#: see that as information. Measured on test_fit's μ-only record of study case 4: with steps of up
-#: to 16 samples the near-null direction ζ–f0 (μ cannot see the dynamics) stayed above the
-#: identifiability threshold and f0 was reported determined; with one sample it is named.
-FIT_STEP_SAMPLES = 1
+#: The integrator's settings in a fit: its output must be a smooth function of the parameters,
+#: since forward differences read any jump, however far below the tolerance, as information.
+#: Measured on test_fit's μ-only record of study case 4, where the near-null direction ζ–f0 (μ
+#: cannot see the dynamics) must stay below the identifiability threshold for f0 to be named:
+#: * max_step_samples 1, every step ends on a sample. A step spanning samples (core/stepper.py)
+#:   puts them on its collocation polynomial, whose error changes by jumps when a parameter moved
+#:   by STEP changes the step sequence: with steps of up to 16 samples f0 was reported determined.
+#: * min_newton_iterations 2: whether a stage solve stops after one Newton iteration changes by
+#:   jumps too; accepting the first iterate reported f0 determined again.
+FIT_INTEGRATION: dict[str, int] = {"max_step_samples": 1, "min_newton_iterations": 2}
 #: Residual given to a sample whose run failed (the step size collapsed): a bad step, not a crash.
 FAILED = 1e3
 
@@ -250,7 +253,7 @@ class ShootingProblem:
             float(self.data.band_velocity[0]),
             sample_rate=self.data.sample_rate,
             rtol=config.rtol,
-            max_step_samples=FIT_STEP_SAMPLES,
+            **FIT_INTEGRATION,
         )
 
     def run(self, values: np.ndarray, states: np.ndarray) -> Run:
