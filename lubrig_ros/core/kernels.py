@@ -6,8 +6,9 @@ Friction laws reach the compiled code through one adapter (this module):
   (compiled for :data:`LAW_SIGNATURE` when first used: v float64, p a contiguous float64 array);
 * :func:`advance` (the stepper) and :func:`evaluate_law` (vectorized μ, dμ/dv) take the kernel as
   an argument and run a copy of the stepper specialized for it (:func:`specialize`): the same
-  source, with the global ``_LAW`` bound to the kernel, so numba inlines the law as it did when the
-  junction law was the only one. Compiled once per law and cached on disk.
+  source, with the global ``_LAW`` bound to the law's function compiled with
+  ``inline="always"``, so numba inlines the law into the step (no call, and no reference count of
+  p, per evaluation: 4 % of a sliding run). Compiled once per law and cached on disk.
 
 Staleness: numba keys a cached function on its own source file only, and a specialized stepper
 embeds its law's code. Its cache is therefore located by :class:`_LawLocator`, whose source stamp
@@ -413,7 +414,7 @@ def specialize(kernel: Any) -> tuple[Any, Any]:
     kernel = getattr(kernel, "dispatcher", kernel)  # a LawKernel compiles here, when first used
     files = (os.path.abspath(inspect.getfile(py_func)),)
     tag = re.sub(r"\W", "_", f"{py_func.__module__}.{py_func.__qualname__}")
-    inlined = njit(inline="always")(py_func)
+    inlined = njit(inline="always")(py_func)  # numba-IR inlined into the step, compiled with it
     step = njit(cache=True)(_clone(_radau_step_py, tag, {"_LAW": inlined}, files))
     loop_files = (*files, os.path.abspath(__file__))
     land = njit(cache=True)(_clone(stepper_module._land_py, tag, {"_STEP": step}, loop_files))
