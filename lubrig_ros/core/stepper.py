@@ -51,8 +51,9 @@ STAGES = 16  # its stage increments: x at 16..18, ẋ at 19..21
 LINE_T0, LINE_V0, LINE_V1 = 22, 23, 24  # its band line: through (t0, v0) and (t0 + dt, v1)
 REDO = 25  # NaN, or the time a step found invalid is being integrated again to
 RETRY = 26  # 1 when the last step attempt was rejected (the next one may refine its error estimate)
-#: The stage solve's last contraction estimate θ/(1 − θ) (Hairer & Wanner's FACCON; 1 at the start):
-#: the next step's first Newton iterate is accepted when it times the iterate's size is small.
+#: The last stage solve's contraction estimate θ/(1 − θ) (Hairer & Wanner's FACCON; 1 at the start):
+#: the next solve accepts its first Newton iterate when this times the iterate's increment is below
+#: 3 % of the tolerance (kernels._radau_step_py).
 NEWTON_RATE = 27
 #: The last accepted step's length (0: none to extrapolate, after a restart) and its ẋ stage
 #: increments (28..30): the next step's stages are predicted from its collocation polynomial.
