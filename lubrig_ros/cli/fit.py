@@ -18,6 +18,7 @@ from lubrig_ros.core.errors import InputError
 from ..app import rundir
 from ..core.presets import default_config
 from ..core.schema import friction_fields, rig_fields
+from ..fit.defaults import MAX_EVALUATIONS, SEGMENT_SECONDS
 from .common import (
     MAX_LOCAL_WORKERS,
     add_force,
@@ -110,7 +111,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_run_source(parser)
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
     parser.add_argument(
-        "--segment", metavar="S", default="0.25", help="multiple-shooting segment length, s (default 0.25)"
+        "--segment",
+        metavar="S",
+        default=str(SEGMENT_SECONDS),
+        help=f"multiple-shooting segment length, s (default {SEGMENT_SECONDS:g})",
     )
     parser.add_argument(
         "--workers",
@@ -122,8 +126,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--max-evaluations",
         metavar="N",
-        default="60",
-        help="residual evaluations per stage at most (default 60)",
+        default=str(MAX_EVALUATIONS),
+        help=f"residual evaluations per stage at most (default {MAX_EVALUATIONS})",
     )
     add_force(parser)
     parser.set_defaults(func=run)

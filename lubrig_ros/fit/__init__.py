@@ -3,5 +3,6 @@
 Modules: `data` (a measured record from a CSV or a bag), `parameters` (the free parameters, their
 units and bounds from core/schema.py), `shooting` (multiple-shooting residuals and Jacobian on
 core.integrator.RigIntegrator), `solve` (bounded least squares, covariance, identifiability),
-`page` (fit.json, the fitted config.yaml and the page with its figures).
+`page` (fit.json, the fitted config.yaml and the page with its figures), `defaults` (the defaults
+`lubrig fit --help` shows).
 """

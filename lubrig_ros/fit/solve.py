@@ -31,6 +31,7 @@ from scipy.sparse import csr_matrix
 
 from ..core.presets import RunConfig
 from .data import MeasuredData
+from .defaults import MAX_EVALUATIONS, SEGMENT_SECONDS
 from .parameters import FreeParameter, current_value, free_parameters
 from .shooting import DEFECT_WEIGHT, Runner, ShootingProblem
 
@@ -54,8 +55,6 @@ SCAN_POINTS = 128
 SCAN_SPAN = math.log(1.25)
 SCAN_LINEAR_SPAN = 0.25
 SCAN_STARTS = 3
-#: Default length of a shooting segment, s.
-SEGMENT_SECONDS = 0.25
 
 
 @dataclass
@@ -222,7 +221,7 @@ def fit(
     names: list[str],
     segment_seconds: float = SEGMENT_SECONDS,
     workers: int = 1,
-    max_evaluations: int = 60,
+    max_evaluations: int = MAX_EVALUATIONS,
 ) -> FitResult:
     """Estimate the named parameters of `config` from `data`, started from `config`'s values."""
     started = time.perf_counter()
