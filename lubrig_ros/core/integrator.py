@@ -28,7 +28,16 @@ from lubrig_ros.core.errors import InputError, LubrigError
 from .friction_laws import law_for
 from .kernels import _A, _A2, _C, _E, RIG_LAYOUT, specialize
 from .params import RigParameters
-from .stepper import BUDGET, BUDGET_SPENT, COMPLETED, OK, PARTIAL_T0, SUBSTEPS, initial_state
+from .stepper import (
+    BUDGET,
+    BUDGET_SPENT,
+    COMPLETED,
+    OK,
+    PARTIAL_T0,
+    STATE_SIZE,
+    SUBSTEPS,
+    initial_state,
+)
 from .trajectory import Trajectory, TrajectorySample
 
 
@@ -170,7 +179,10 @@ class RigIntegrator:
 
     def restore(self, snapshot: np.ndarray) -> None:
         """Back to a state taken with `snapshot` (e.g. to redo a failed block sample by sample)."""
-        self._state = np.array(snapshot, dtype=np.float64)
+        state = np.array(snapshot, dtype=np.float64).reshape(-1)
+        if state.size != STATE_SIZE:
+            raise InputError(f"a snapshot of {state.size} values; expected {STATE_SIZE} (snapshot())")
+        self._state = state
 
     def current(self) -> Trajectory:
         """The present state as a one-sample trajectory."""

@@ -252,9 +252,9 @@ def _advance_py(
             else:
                 state[PENDING] = 0.0
                 state[REDO] = t_prev  # valid up to the previous sample only
+                state[LAST_H] = 0.0  # integrated again from its start: no step ends there
         if not math.isnan(state[REDO]):
             line = (state[LINE_T0], state[LINE_V0], state[LINE_V1], dt, False)
-            state[LAST_H] = 0.0
             status, attempts, _ = _LAND(state, state[REDO], line, False, run, scratch, attempts)
             if status != OK:
                 return _stop(state, status, dt)
