@@ -47,6 +47,7 @@ class LauncherPresence:
     def __init__(self, namespace: str) -> None:
         self.namespace = namespace
         self._made: tuple[Any, Any] | None = None
+        self.made_at = 0.0  # time.monotonic() when the node was made
 
     def _make(self) -> tuple[Any, Any]:
         if self._made is None:
@@ -59,7 +60,12 @@ class LauncherPresence:
             context = Context()
             rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
             self._made = (context, unspun_node(LAUNCHER_NODE, self.namespace, context))
+            self.made_at = time.monotonic()
         return self._made
+
+    def make(self) -> None:
+        """Make the context and the node now (a no-op once made)."""
+        self._make()
 
     @property
     def context(self) -> Any:
@@ -104,13 +110,15 @@ def _occupants(node: Any, namespace: str) -> list[str]:
 def namespace_taken(presence: LauncherPresence, settle: float = GRAPH_SETTLE_S) -> str:
     """One line naming the rig that holds the presence's namespace on this domain, or "" (after `settle` s).
 
-    The graph is read once `settle` s of discovery have passed (rmw's discovery keeps the graph
-    up to date meanwhile; a rig seen then is named with all of its nodes discovered by then).
+    The graph is read once the presence's node has existed for `settle` s of discovery (rmw's
+    discovery keeps the graph up to date meanwhile; a rig seen then is named with all of its
+    nodes discovered by then): `lubrig rig` makes the node before it starts the node processes
+    (cli/rig.py), so that their imports do not delay it and the wait counts from then.
     One look, not a poll: the node processes import beside this wait (cli/rig_gate.py), and CPU
     spent here is taken from them. The presence stays on the graph either way (`close` ends it).
     """
     node, namespace = presence.node, presence.namespace
-    time.sleep(settle)
+    time.sleep(max(0.0, settle - (time.monotonic() - presence.made_at)))
     held = _occupants(node, namespace)
     if not held:
         return ""
