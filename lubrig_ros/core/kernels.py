@@ -81,9 +81,8 @@ _A = np.array(
 )
 _A2 = _A @ _A
 _E = np.array([-13.0 - 7.0 * _S6, -13.0 + 7.0 * _S6, -1.0]) / 3.0
-_P00, _P01, _P02 = 13.0 / 3.0 + 7.0 * _S6 / 3.0, -23.0 / 3.0 - 22.0 * _S6 / 3.0, 10.0 / 3.0 + 5.0 * _S6
-_P10, _P11, _P12 = 13.0 / 3.0 - 7.0 * _S6 / 3.0, -23.0 / 3.0 + 22.0 * _S6 / 3.0, 10.0 / 3.0 - 5.0 * _S6
-_P20, _P21, _P22 = 1.0 / 3.0, -8.0 / 3.0, 10.0 / 3.0
+#: The collocation polynomial's coefficients (core/stepper.py _P) as scalars, for the predictor.
+(_P00, _P01, _P02), (_P10, _P11, _P12), (_P20, _P21, _P22) = stepper_module._P.tolist()
 _MU_REAL = 3.0 + 3.0 ** (2.0 / 3.0) - 3.0 ** (1.0 / 3.0)
 #: Newton iterations before a stage solve counts as failed (the step is then halved). Converged
 #: solves took at most 14 (the trust region below allows a factor 4 in |v_rel| per iteration) on
@@ -259,9 +258,9 @@ def _radau_step_py(  # noqa: C901
         # its band-following guess is not what the last rate was measured from (at a corner of
         # case 8, a first increment of 3 error scales passed with a rate of 4e-4, its solve then
         # not contracting at all). Never the first after a clamped one, and with min_newton 2
-        # never the first: whether one iteration
-        # suffices changes by jumps with the parameters, and the fit's forward differences
-        # (fit/shooting.py) would read those jumps, below the tolerance, as information.
+        # never the first: whether one iteration suffices changes by jumps with the parameters,
+        # and the fit's forward differences (fit/shooting.py) would read those jumps, below the
+        # tolerance, as information.
         if clamped:
             norm_old = -1.0
             continue
