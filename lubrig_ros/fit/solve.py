@@ -1,21 +1,8 @@
-"""Bounded nonlinear least squares on the multiple-shooting residuals; errors and identifiability.
+"""Bounded nonlinear least squares on the multiple-shooting residuals.
 
 scipy.optimize.least_squares (trust-region reflective, bounded by the parameters' physical ranges
-from core/schema.py) minimizes the residuals of fit.shooting. At the solution:
-
-* covariance: that of the estimator computed, the sandwich s² A⁺ J_dᵀJ_d A⁺ with A = JᵀJ at the
-  fit's continuity weight (DEFECT_WEIGHT: the segments are joined by a penalty, not exactly, so
-  the states are some extra freedom) and J_d the data rows (only they carry noise), restricted to
-  the parameters; s² is the data residuals' mean square per degree of freedom (the noise estimate
-  corrected by what the model leaves); standard errors in the parameters' units (delta method
-  through θ = ln p where the range is positive);
-* identifiability: a parameter is named as not determined by the data when its relative standard
-  error exceeds MAX_RELATIVE_ERROR, when its correlation with another free parameter exceeds
-  MAX_CORRELATION in magnitude (both from the covariance above), or when it takes part in a
-  near-null direction of the parameters' information with the continuity rows weighted
-  COVARIANCE_WEIGHT, the penalty's limit (eigenvalue of the correlation-scaled information below
-  MIN_EIGENVALUE: a combination the data cannot see, such as A·G and A·η_ref, which are all μ
-  depends on).
+from core/schema.py) minimizes the residuals of fit.shooting; fit.uncertainty gives the standard
+errors and names what the data cannot determine, from the Jacobian at the solution.
 """
 
 from __future__ import annotations
@@ -27,22 +14,14 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.sparse import csr_matrix
 
 from ..core.presets import RunConfig
 from .data import MeasuredData
 from .defaults import MAX_EVALUATIONS, SEGMENT_SECONDS
 from .parameters import FreeParameter, current_value, free_parameters
 from .shooting import DEFECT_WEIGHT, Runner, ShootingProblem
+from .uncertainty import covariance, parameter_information, undetermined
 
-#: Weight of the continuity rows in the information asked about identifiability (the penalty's limit).
-COVARIANCE_WEIGHT = 1e3
-#: A correlation above this (in magnitude) names both parameters.
-MAX_CORRELATION = 0.99
-#: A relative standard error above this names the parameter.
-MAX_RELATIVE_ERROR = 1.0
-#: Eigenvalue of the correlation-scaled information below which a direction counts as unseen.
-MIN_EIGENVALUE = 1e-8
 #: Residual RMS above this multiple of a stream's noise estimate: the fitted model does not
 #: explain the data (a local minimum, a model that cannot, or parameters that should be free).
 MAX_MISFIT = 1.5
@@ -140,79 +119,20 @@ class FitResult:
         }
 
 
+def unconverged(document: dict[str, Any]) -> str:
+    """Why a fit's estimates are not at a minimum, from its fit.json content ('' if it converged)."""
+    if document["success"]:
+        return ""
+    return (
+        f"the fit stopped after {document['function_evaluations']} evaluations without converging "
+        f"({document['status']}): the estimates and errors are those of where it stopped "
+        "(--max-evaluations allows more)"
+    )
+
+
 def _json_float(value: float) -> float | None:
     """A finite float, or None (JSON has no inf/NaN) for an error the data cannot bound."""
     return float(value) if math.isfinite(value) else None
-
-
-def information_matrix(problem: ShootingProblem, jac: np.ndarray) -> np.ndarray:
-    """JᵀJ with the continuity rows weighted COVARIANCE_WEIGHT instead of the fit's weight."""
-    rows = problem.data_rows()
-    data, defects = jac[:rows], jac[rows:]
-    factor = (COVARIANCE_WEIGHT / problem.defect_weight) ** 2
-    return np.asarray(data.T @ data + factor * (defects.T @ defects))
-
-
-def covariance(problem: ShootingProblem, jac: np.ndarray, residual: np.ndarray) -> np.ndarray:
-    """Covariance of z as computed (the fit's weights): s² A⁺ J_dᵀJ_d A⁺, A = JᵀJ (module docstring).
-
-    s² is the data residuals' mean square per degree of freedom.
-    """
-    rows = problem.data_rows()
-    data = jac[:rows]
-    outer = np.asarray(data.T @ data)
-    inverse = np.linalg.pinv(np.asarray(jac.T @ jac), rcond=1e-15, hermitian=True)
-    dof = max(problem.fitted_rows() - jac.shape[1], 1)
-    s2 = float(residual[:rows] @ residual[:rows]) / dof
-    return np.asarray(s2 * inverse @ outer @ inverse)
-
-
-def parameter_information(problem: ShootingProblem, information: np.ndarray) -> np.ndarray:
-    """Information of the parameters with the states eliminated (Schur complement), in θ."""
-    count = len(problem.parameters)
-    pp, ps, ss = information[:count, :count], information[:count, count:], information[count:, count:]
-    return np.asarray(pp - ps @ np.linalg.pinv(ss, rcond=1e-15, hermitian=True) @ ps.T)
-
-
-def undetermined(
-    parameters: list[FreeParameter],
-    values: np.ndarray,
-    errors: np.ndarray,
-    correlation: np.ndarray,
-    info: np.ndarray,
-) -> dict[str, str]:
-    """Each parameter the data cannot determine, with why (see the module's docstring)."""
-    names = [p.name for p in parameters]
-    found: dict[str, list[str]] = {}
-    for j, p in enumerate(parameters):
-        reference = abs(values[j]) or (p.spec.high - p.spec.low)
-        if not math.isfinite(errors[j]) or errors[j] > MAX_RELATIVE_ERROR * reference:
-            found.setdefault(p.name, []).append(
-                f"standard error {errors[j]:.3g}{p.spec.unit_text} exceeds "
-                f"{MAX_RELATIVE_ERROR:.0%} of the value"
-            )
-        for k in range(len(parameters)):
-            if k != j and abs(correlation[j, k]) > MAX_CORRELATION:
-                found.setdefault(p.name, []).append(f"correlation {correlation[j, k]:+.4f} with {names[k]}")
-    diagonal = np.sqrt(np.clip(np.diag(info), 0.0, None))
-    scale = np.where(diagonal > 0.0, diagonal, 1.0)
-    eigenvalues, vectors = np.linalg.eigh(info / np.outer(scale, scale))
-    top = max(float(eigenvalues.max()), 1e-300)
-    for value, vector in zip(eigenvalues, vectors.T, strict=True):
-        if value < MIN_EIGENVALUE * top:
-            weight = np.abs(vector)
-            members = [names[j] for j in range(len(names)) if weight[j] >= 0.25 * weight.max()]
-            combination = " + ".join(f"{vector[names.index(m)]:+.2f}·{m}" for m in members)
-            for member in members:
-                found.setdefault(member, []).append(
-                    f"near-singular Jacobian: the data do not see the combination {combination} (in θ)"
-                )
-    for j, p in enumerate(parameters):
-        if diagonal[j] == 0.0:
-            found.setdefault(p.name, []).append(
-                "no information left once the segments' start states are fitted (they absorb it)"
-            )
-    return {name: "; ".join(dict.fromkeys(reasons)) for name, reasons in found.items()}
 
 
 def fit(
@@ -254,10 +174,10 @@ def _local_fit(
     return least_squares(
         runner.residuals,
         z0,
-        jac=lambda z: csr_matrix(runner.jacobian(z)),
+        jac=runner.jacobian,
         bounds=(low, high),
         method="trf",
-        tr_solver="lsmr",
+        tr_solver="exact",
         x_scale=1.0,
         max_nfev=max_evaluations,
     )
@@ -326,15 +246,15 @@ def _fit_states(runner: Runner, z0: np.ndarray, max_evaluations: int) -> np.ndar
     def fun(states: np.ndarray) -> np.ndarray:
         return runner.residuals(with_states(states))
 
-    def jac(states: np.ndarray) -> csr_matrix:
-        return csr_matrix(runner.jacobian(with_states(states), parameters=False)[:, moving])
+    def jac(states: np.ndarray) -> np.ndarray:
+        return runner.jacobian(with_states(states), parameters=False)[:, moving]
 
     solution = least_squares(
         fun,
         z0[moving],
         jac=jac,
         method="trf",
-        tr_solver="lsmr",
+        tr_solver="exact",
         ftol=STATE_STAGE_FTOL,
         max_nfev=min(max_evaluations, STATE_STAGE_EVALUATIONS),
     )
@@ -351,10 +271,8 @@ def _result(
     wall: float,
 ) -> FitResult:
     values, states = problem.unpack(solution.x)
-    information = information_matrix(problem, jac)
     cov = covariance(problem, jac, solution.fun)
     count = len(parameters)
-    info = parameter_information(problem, information)
     theta_errors = np.sqrt(np.clip(np.diag(cov)[:count], 0.0, None))
     errors = np.array(
         [p.physical_error(v, e) for p, v, e in zip(parameters, values, theta_errors, strict=True)]
@@ -395,5 +313,6 @@ def _result(
         states=states,
         model=model,
     )
-    result.undetermined = undetermined(parameters, values, errors, correlation, info)
+    info, retained = parameter_information(problem, jac)
+    result.undetermined = undetermined(parameters, values, errors, correlation, info, retained)
     return result
