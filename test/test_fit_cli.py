@@ -80,6 +80,15 @@ def test_fit_a_simulated_csv_and_run_the_fitted_config(tmp_path: Path) -> None:
     refused = lubrig("fit", str(record), "--case", "4", "--free", "damping_ratio", "--out", str(out))
     assert refused.returncode == 2 and "--force" in refused.stderr
 
+    stopped = tmp_path / "stopped"
+    limit = ["--max-evaluations", "1"]
+    cut = lubrig("fit", str(record), "--case", "4", "--free", "damping_ratio", *limit, "--out", str(stopped))
+    assert cut.returncode == 0, cut.stderr
+    warning = "lubrig fit: warning: the fit stopped after 1 evaluations without converging"
+    assert cut.stderr.startswith(warning), cut.stderr
+    assert json.loads((stopped / "fit.json").read_text())["success"] is False
+    assert "**not converged**" in (stopped / "fit.md").read_text()
+
 
 def test_fit_a_sim_bag(ros_module_domain: int, tmp_path: Path) -> None:
     """The bag path: displacement and μ from state_block, band velocity from band_velocity_block."""

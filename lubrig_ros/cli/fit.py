@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--segment {args.segment} s holds fewer than 2 samples at {data.sample_rate:g} Hz")
     config = config.with_overrides(sample_rate=round(data.sample_rate, 6), duration=float(data.time[-1]))
     from ..fit.page import FIT_FILES, write_outputs
-    from ..fit.solve import fit
+    from ..fit.solve import fit, unconverged
 
     out = rundir.prepare_output_dir(Path(args.out), args.force, "--out", FIT_FILES)
     result = fit(data, config, names, segment_seconds=segment, workers=workers, max_evaluations=evaluations)
@@ -79,6 +79,8 @@ def run(args: argparse.Namespace) -> int:
         f"{data.time.size} samples, {result.evaluations} evaluations in {result.wall_time:.1f} s "
         f"({result.status}); results in {out}/"
     )
+    if not result.success:
+        print(f"lubrig fit: warning: {unconverged(result.to_dict())}", file=sys.stderr)
     for name, ratio in result.misfit().items():
         print(
             f"lubrig fit: warning: the fit leaves {ratio:.1f} × the noise in {name}: the fitted model "

@@ -35,7 +35,7 @@ from ..figures.curves import plot_stability_map, save_figure
 from .data import MeasuredData
 from .parameters import fixed_values
 from .shooting import FIT_INTEGRATION
-from .solve import FitResult
+from .solve import FitResult, unconverged
 
 #: Every file `lubrig fit` writes into --out (replaced with --force).
 FIT_FILES: tuple[str, ...] = (
@@ -200,6 +200,8 @@ def _markdown(document: dict[str, Any], figures: list[str]) -> str:
         seen = "yes" if e["identifiable"] else "**no**"
         lines.append(f"| {name} | {e['value']:.6g} | {error} | {e['unit']} | {e['start']:.6g} | {seen} |")
     lines.append("")
+    if not document["success"]:
+        lines.append(f"- **not converged**: {unconverged(document)}.")
     for name, why in document["undetermined"].items():
         lines.append(f"- **{name}** is not determined by the data: {why}.")
     for name, ratio in document["misfit"].items():
