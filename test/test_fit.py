@@ -22,6 +22,7 @@ from lubrig_testkit.measured import noisy_record
 from lubrig_ros.core.errors import InputError
 from lubrig_ros.core.presets import RunConfig, load_case
 from lubrig_ros.fit.data import MeasuredData, checked, load_csv
+from lubrig_ros.fit.page import write_outputs
 from lubrig_ros.fit.parameters import fittable_names, free_parameters
 from lubrig_ros.fit.shooting import Runner, ShootingProblem
 from lubrig_ros.fit.solve import FitResult, fit
@@ -59,6 +60,7 @@ def test_study_cases_recover_rig_and_friction_parameters(case: int) -> None:
     result = fit(data, config, list(TRUTH))
     assert result.success, result.status
     assert_recovered(result, TRUTH)
+    assert result.at_bound == []
     for name, rms in result.residual_rms.items():  # the model leaves the noise, no more
         assert rms < 1.1 * result.noise[name], (name, rms, result.noise[name])
     assert result.misfit() == {}
@@ -119,6 +121,19 @@ def test_a_fit_that_does_not_explain_the_data_says_so() -> None:
     result = fit(data, load_case(1).with_overrides(duration=2.0), ["damping_ratio"])
     assert set(result.misfit()) == {"displacement", "friction_coefficient"}, result.residual_rms
     assert result.to_dict()["misfit"]["displacement"] > 1.5
+
+
+def test_a_parameter_left_on_its_bound_is_flagged(tmp_path: Path) -> None:
+    """An undamped rig (ζ = 0, the bottom of its range): noise drives the estimate onto the bound
+    (this seed), where the linear errors no longer hold; fit.json and fit.md say so."""
+    config = load_case(4).with_overrides(duration=2.0)
+    data = synthetic(config, {"damping_ratio": 0.0})
+    result = fit(data, config, ["damping_ratio"])
+    assert result.at_bound == ["damping_ratio"] and 0.0 <= result.values[0] < 1e-8, result.values
+    document = write_outputs(tmp_path, data, result, "test")
+    assert document["estimates"]["damping_ratio"]["at_bound"] is True
+    page = (tmp_path / "fit.md").read_text()
+    assert "**at a bound**: damping_ratio ended on a bound of its range [0, 2]" in page
 
 
 def test_a_set_the_data_cannot_separate_is_named() -> None:

@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--segment {args.segment} s holds fewer than 2 samples at {data.sample_rate:g} Hz")
     config = config.with_overrides(sample_rate=round(data.sample_rate, 6), duration=float(data.time[-1]))
     from ..fit.page import FIT_FILES, write_outputs
-    from ..fit.solve import fit, unconverged
+    from ..fit.solve import bound_warning, fit, unconverged
 
     out = rundir.prepare_output_dir(Path(args.out), args.force, "--out", FIT_FILES)
     result = fit(data, config, names, segment_seconds=segment, workers=workers, max_evaluations=evaluations)
@@ -81,6 +81,9 @@ def run(args: argparse.Namespace) -> int:
     )
     if not result.success:
         print(f"lubrig fit: warning: {unconverged(result.to_dict())}", file=sys.stderr)
+    estimates = result.to_dict()["estimates"]
+    for name in result.at_bound:
+        print(f"lubrig fit: warning: {bound_warning(name, estimates[name])}", file=sys.stderr)
     for name, ratio in result.misfit().items():
         print(
             f"lubrig fit: warning: the fit leaves {ratio:.1f} × the noise in {name}: the fitted model "

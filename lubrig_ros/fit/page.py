@@ -35,7 +35,7 @@ from ..figures.curves import plot_stability_map, save_figure
 from .data import MeasuredData
 from .parameters import fixed_values
 from .shooting import FIT_INTEGRATION
-from .solve import FitResult, unconverged
+from .solve import FitResult, bound_warning, unconverged
 
 #: Every file `lubrig fit` writes into --out (replaced with --force).
 FIT_FILES: tuple[str, ...] = (
@@ -202,6 +202,9 @@ def _markdown(document: dict[str, Any], figures: list[str]) -> str:
     lines.append("")
     if not document["success"]:
         lines.append(f"- **not converged**: {unconverged(document)}.")
+    for name, e in document["estimates"].items():
+        if e["at_bound"]:
+            lines.append(f"- **at a bound**: {bound_warning(name, e)}.")
     for name, why in document["undetermined"].items():
         lines.append(f"- **{name}** is not determined by the data: {why}.")
     for name, ratio in document["misfit"].items():

@@ -59,6 +59,8 @@ class FitResult:
     wall_time: float
     workers: int
     undetermined: dict[str, str] = field(default_factory=dict)
+    #: free parameters the optimizer left on a bound of their range (scipy's active constraints)
+    at_bound: list[str] = field(default_factory=list)
     config: RunConfig | None = None
     states: np.ndarray | None = None
     #: the fitted model at every sample (the shooting segments), by measured stream
@@ -84,6 +86,7 @@ class FitResult:
                 "start": float(s),
                 "bounds": [p.spec.low, p.spec.high],
                 "identifiable": p.name not in self.undetermined,
+                "at_bound": p.name in self.at_bound,
             }
             for p, v, e, s in zip(self.parameters, self.values, self.errors, self.start, strict=True)
         }
@@ -127,6 +130,15 @@ def unconverged(document: dict[str, Any]) -> str:
         f"the fit stopped after {document['function_evaluations']} evaluations without converging "
         f"({document['status']}): the estimates and errors are those of where it stopped "
         "(--max-evaluations allows more)"
+    )
+
+
+def bound_warning(name: str, estimate: dict[str, Any]) -> str:
+    """What a parameter ending on a bound of its range means for the errors (from fit.json)."""
+    low, high = estimate["bounds"]
+    return (
+        f"{name} ended on a bound of its range [{low:g}, {high:g}] at {estimate['value']:.6g}: its standard "
+        "error treats it as free, and those of the other parameters hold only if it is right there"
     )
 
 
@@ -314,5 +326,6 @@ def _result(
         model=model,
     )
     info, retained = parameter_information(problem, jac)
+    result.at_bound = [p.name for p, active in zip(parameters, solution.active_mask[:count], strict=True) if active]
     result.undetermined = undetermined(parameters, values, errors, correlation, info, retained)
     return result
