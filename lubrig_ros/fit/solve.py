@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
 from ..core.presets import RunConfig
 from .data import MeasuredData
@@ -34,6 +35,11 @@ SCAN_POINTS = 128
 SCAN_SPAN = math.log(1.25)
 SCAN_LINEAR_SPAN = 0.25
 SCAN_STARTS = 3
+#: BLAS threads of the fit's dense linear algebra (an SVD of the Jacobian per step, the errors'):
+#: on a shared machine OpenBLAS's threads spin against other processes. An SVD of 40000 × 165
+#: took 0.33 s on two threads and 0.52–0.63 s on one on a quiet machine, but 2.4–14 s on two
+#: and 1.1–1.2 s on one beside one CPU hog (docs/fitting.md, "Tests and speed").
+BLAS_THREADS = 1
 
 
 @dataclass
@@ -168,14 +174,15 @@ def fit(
     )
     z0 = np.concatenate([theta, problem.pack(start, problem.initial_states(start))[len(parameters) :]])
     runner = Runner(problem, workers)
-    try:
-        starts = _scan(runner, z0, low, high) if problem.slips else [z0]
-        solutions = [_local_fit(runner, z, low, high, max_evaluations) for z in starts]
-        solution = min(solutions, key=lambda s: float(s.cost))
-        jac = runner.jacobian(solution.x)
-    finally:
-        runner.close()
-    return _result(problem, parameters, start, solution, jac, workers, time.perf_counter() - started)
+    with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        try:
+            starts = _scan(runner, z0, low, high) if problem.slips else [z0]
+            solutions = [_local_fit(runner, z, low, high, max_evaluations) for z in starts]
+            solution = min(solutions, key=lambda s: float(s.cost))
+            jac = runner.jacobian(solution.x)
+        finally:
+            runner.close()
+        return _result(problem, parameters, start, solution, jac, workers, time.perf_counter() - started)
 
 
 def _local_fit(
@@ -326,6 +333,7 @@ def _result(
         model=model,
     )
     info, retained = parameter_information(problem, jac)
-    result.at_bound = [p.name for p, active in zip(parameters, solution.active_mask[:count], strict=True) if active]
+    active = solution.active_mask[:count]
+    result.at_bound = [p.name for p, bound in zip(parameters, active, strict=True) if bound]
     result.undetermined = undetermined(parameters, values, errors, correlation, info, retained)
     return result
