@@ -17,7 +17,7 @@ Both come from singular value decompositions of the Jacobian, never from JᵀJ: 
 information with the states eliminated is the small difference of large terms when the continuity
 rows (weighted 1000) carry most of a parameter's column, and formed from JᵀJ (its Schur complement)
 that difference was lost to rounding (measured on μ alone of study case 4: f0's information 1290
-(in ln f0) by projection, −4973, +32050 and −3588 by the Schur complement at four stops of the same
+(in ln f0) by projection, −4973, +32050 and −3588 by the Schur complement at three stops of the same
 fit, so the verdict on f0 flipped with where the fit stopped). The Jacobian's columns are
 projected off the span of the state columns instead, which loses nothing to cancellation.
 """
