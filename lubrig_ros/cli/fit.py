@@ -107,7 +107,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "time_s, band_velocity_m_s, displacement_m accepted), uniformly sampled; or a bag directory "
         "recorded by `lubrig rig` (displacement and μ from <ns>/state_block, band velocity from "
         "<ns>/band_velocity_block). Writes fit.json, config.yaml (+ band.csv), fit.md and figures "
-        "to --out. Parameters the data cannot determine are named on stderr and in fit.json.",
+        "to --out. Parameters the data cannot determine are named on stderr and in fit.json, and so "
+        "is a fit that stops without converging or leaves a parameter on a bound of its range.",
     )
     parser.add_argument("data", metavar="DATA", help="CSV file or bag directory")
     parser.add_argument(
