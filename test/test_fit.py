@@ -21,12 +21,19 @@ from lubrig_testkit.measured import noisy_record
 
 from lubrig_ros.core.errors import InputError
 from lubrig_ros.core.presets import RunConfig, load_case
+from lubrig_ros.fit import solve
 from lubrig_ros.fit.data import MeasuredData, checked, load_csv
 from lubrig_ros.fit.page import write_outputs
 from lubrig_ros.fit.parameters import fittable_names, free_parameters
 from lubrig_ros.fit.shooting import Runner, ShootingProblem
 from lubrig_ros.fit.solve import FitResult, fit
-from lubrig_ros.fit.uncertainty import COVARIANCE_WEIGHT, parameter_information
+from lubrig_ros.fit.uncertainty import (
+    COVARIANCE_WEIGHT,
+    MIN_RETAINED,
+    covariance,
+    parameter_information,
+    undetermined,
+)
 
 #: The true rig of the synthetic records (the fit starts from the study's defaults).
 TRUTH = {"damping_ratio": 0.012, "natural_frequency": 10.3, "shear_modulus": 4.1e6}
@@ -86,10 +93,9 @@ def test_one_measured_stream() -> None:
         assert set(early.undetermined) == {"damping_ratio"}, (evaluations, early.undetermined)
 
 
-def test_the_states_are_eliminated_without_cancellation() -> None:
-    """The parameters' information with the segment states eliminated equals a QR of the weighted
-    Jacobian with the state columns first, where the continuity rows carry most of each column
-    (μ alone on case 4: formed from JᵀJ, f0's came out negative)."""
+@pytest.fixture(scope="module")
+def mu_only_jacobian() -> tuple[ShootingProblem, np.ndarray, np.ndarray]:
+    """(problem, Jacobian, residuals) of 1 s of μ alone on case 4 at the truth, 4 segments."""
     config = load_case(4).with_overrides(duration=1.0)
     time, band, _, mu = noisy_record(config, TRUTH)
     parameters = free_parameters(list(TRUTH), config)
@@ -97,17 +103,61 @@ def test_the_states_are_eliminated_without_cancellation() -> None:
     runner = Runner(problem, 1)
     try:
         values = np.array([TRUTH[p.name] for p in parameters])
-        jac = runner.jacobian(problem.pack(values, problem.initial_states(values)))
+        z = problem.pack(values, problem.initial_states(values))
+        return problem, runner.jacobian(z), runner.residuals(z)
     finally:
         runner.close()
+
+
+def test_the_states_are_eliminated_without_cancellation(
+    mu_only_jacobian: tuple[ShootingProblem, np.ndarray, np.ndarray],
+) -> None:
+    """The parameters' information with the segment states eliminated equals a QR of the weighted
+    Jacobian with the state columns first, where the continuity rows carry most of each column
+    (μ alone on case 4: formed from JᵀJ, f0's came out negative)."""
+    problem, jac, _ = mu_only_jacobian
     info, retained = parameter_information(problem, jac)
     weighted = np.array(jac)
     weighted[problem.data_rows() :] *= COVARIANCE_WEIGHT / problem.defect_weight
-    count = len(parameters)
+    count = len(problem.parameters)
     r = np.linalg.qr(np.hstack([weighted[:, count:], weighted[:, :count]]), mode="r")
     tail = r[-count:, -count:]
     np.testing.assert_allclose(info, tail.T @ tail, rtol=1e-6, atol=1e-9 * np.abs(info).max())
     assert np.all(np.diag(info) > 0.0) and np.all(retained > 1e-3), (np.diag(info), retained)
+
+
+def test_a_parameter_the_states_absorb_is_named(
+    mu_only_jacobian: tuple[ShootingProblem, np.ndarray, np.ndarray],
+) -> None:
+    """ζ's column replaced by a combination of the state columns: nothing of it is left once the
+    states are fitted, and only ζ is named, for that."""
+    problem, jac, _ = mu_only_jacobian
+    count = len(problem.parameters)
+    absorbed = np.array(jac)
+    absorbed[:, 0] = jac[:, count:] @ np.random.default_rng(5).normal(size=jac.shape[1] - count)
+    info, retained = parameter_information(problem, absorbed)
+    assert retained[0] < MIN_RETAINED < retained[1:].min(), retained
+    names = undetermined(
+        problem.parameters, np.ones(count), np.full(count, 0.01), np.eye(count), info, retained
+    )
+    assert set(names) == {"damping_ratio"} and "no information left" in names["damping_ratio"], names
+
+
+def test_the_covariance_is_the_estimator_s(
+    mu_only_jacobian: tuple[ShootingProblem, np.ndarray, np.ndarray],
+) -> None:
+    """s² A⁺ J_dᵀJ_d A⁺ (A = JᵀJ, J_d the data rows) equals s² J⁺_d J⁺_dᵀ from a QR of J, J⁺_d
+    the data columns of the pseudo-inverse (J = QR, J⁺ = R⁻¹Qᵀ); not s² A⁺, which ignores that
+    only the data rows carry noise."""
+    problem, jac, residual = mu_only_jacobian
+    q, r = np.linalg.qr(jac)
+    data_pinv = np.linalg.solve(r, q[: problem.data_rows()].T)
+    rows = residual[: problem.data_rows()]
+    s2 = float(rows @ rows) / (problem.fitted_rows() - jac.shape[1])
+    expected = s2 * data_pinv @ data_pinv.T
+    np.testing.assert_allclose(
+        covariance(problem, jac, residual), expected, rtol=1e-6, atol=1e-12 * expected.max()
+    )
 
 
 def test_a_fit_that_does_not_explain_the_data_says_so() -> None:
@@ -121,6 +171,22 @@ def test_a_fit_that_does_not_explain_the_data_says_so() -> None:
     result = fit(data, load_case(1).with_overrides(duration=2.0), ["damping_ratio"])
     assert set(result.misfit()) == {"displacement", "friction_coefficient"}, result.residual_rms
     assert result.to_dict()["misfit"]["displacement"] > 1.5
+
+
+def test_a_record_over_the_exact_step_budget_takes_lsmr_steps(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Above EXACT_STEP_BUDGET (here every record) the fit takes LSMR's steps and still recovers
+    the rig; fit.json says which steps it took."""
+    config = load_case(4).with_overrides(duration=DURATION)
+    data = synthetic(config, TRUTH)
+    assert (
+        fit(data, config, ["damping_ratio"], max_evaluations=1).to_dict()["method"]["trust_region_steps"]
+        == "exact"
+    )
+    monkeypatch.setattr(solve, "EXACT_STEP_BUDGET", 0.0)
+    result = fit(data, config, list(TRUTH))
+    assert result.success, result.status
+    assert result.to_dict()["method"]["trust_region_steps"] == "lsmr"
+    assert_recovered(result, TRUTH)
 
 
 def test_a_parameter_left_on_its_bound_is_flagged(tmp_path: Path) -> None:

@@ -84,7 +84,7 @@ def test_fit_a_simulated_csv_and_run_the_fitted_config(tmp_path: Path) -> None:
     limit = ["--max-evaluations", "1"]
     cut = lubrig("fit", str(record), "--case", "4", "--free", "damping_ratio", *limit, "--out", str(stopped))
     assert cut.returncode == 0, cut.stderr
-    warning = "lubrig fit: warning: the fit stopped after 1 evaluations without converging"
+    warning = "lubrig fit: warning: the fit stopped after 1 evaluation(s) without converging"
     assert cut.stderr.startswith(warning), cut.stderr
     assert json.loads((stopped / "fit.json").read_text())["success"] is False
     assert "**not converged**" in (stopped / "fit.md").read_text()

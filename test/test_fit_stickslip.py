@@ -8,11 +8,11 @@ lubrig_testkit.measured (scipy LSODA, no code of lubrig_ros's integrator) with t
 start rig's first slip 0.6 s late, the case the local fit alone could not bring back
 (docs/fitting.md, Stick-slip).
 
-Over noise seeds 1–40 every fit ended within 5 % of the truth; the deviations are 0.94–1.07 of
-the reported standard errors in RMS (the covariance of the estimator computed, fit/solve.py), and
-all three were within 2 standard errors on 34 of 40 seeds (docs/fitting.md has the figures). The
-test asserts the criterion, every free parameter within 5 % and 2 standard errors, on seed 3,
-where μ's stick–slip jumps once collapsed f0's error 60-fold.
+Over noise seeds 1–40 every fit converged and ended within 5 % of the truth; the deviations are
+0.93–1.09 of the reported standard errors in RMS (the covariance of the estimator computed,
+fit/uncertainty.py), and all three were within 2 standard errors on 34 of 40 seeds
+(docs/fitting.md has the figures). The test asserts the criterion, every free parameter within
+5 % and 2 standard errors, on seed 3, where μ's stick–slip jumps once collapsed f0's error 60-fold.
 """
 
 from __future__ import annotations

@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.sparse import csr_matrix
 from threadpoolctl import threadpool_limits
 
 from ..core.presets import RunConfig
@@ -35,6 +37,12 @@ SCAN_POINTS = 128
 SCAN_SPAN = math.log(1.25)
 SCAN_LINEAR_SPAN = 0.25
 SCAN_STARTS = 3
+#: Exact trust-region steps (an SVD of the dense Jacobian: time ∝ m n², memory ∝ m n for m data
+#: rows and n unknowns) up to this m·n², LSMR's inexact ones on the sparse Jacobian above it.
+#: Exact steps reach the minimum where LSMR's stopped above it or never converged (docs/fitting.md,
+#: Method); the 20 s five-parameter benchmark is 1.1e9 (an SVD 0.5 s on one thread), a 60 s record
+#: with x and μ 2.8e10 (7.4 s and 1.4 GB an SVD).
+EXACT_STEP_BUDGET = 2e9
 #: BLAS threads of the fit's dense linear algebra (an SVD of the Jacobian per step, the errors'):
 #: on a shared machine OpenBLAS's threads spin against other processes. An SVD of 40000 × 165
 #: took 0.33 s on two threads and 0.52–0.63 s on one on a quiet machine, but 2.4–14 s on two
@@ -64,6 +72,7 @@ class FitResult:
     segment_seconds: float
     wall_time: float
     workers: int
+    steps: str  # the trust-region steps of the full stage: "exact" or "lsmr" (step_kind)
     undetermined: dict[str, str] = field(default_factory=dict)
     #: free parameters the optimizer left on a bound of their range (scipy's active constraints)
     at_bound: list[str] = field(default_factory=list)
@@ -122,6 +131,7 @@ class FitResult:
                 "segments": self.segments,
                 "segment_s": self.segment_seconds,
                 "defect_weight": DEFECT_WEIGHT,
+                "trust_region_steps": self.steps,
                 "workers": self.workers,
                 "wall_time_s": self.wall_time,
             },
@@ -133,7 +143,7 @@ def unconverged(document: dict[str, Any]) -> str:
     if document["success"]:
         return ""
     return (
-        f"the fit stopped after {document['function_evaluations']} evaluations without converging "
+        f"the fit stopped after {document['function_evaluations']} evaluation(s) without converging "
         f"({document['status']}): the estimates and errors are those of where it stopped "
         "(--max-evaluations allows more)"
     )
@@ -185,6 +195,20 @@ def fit(
         return _result(problem, parameters, start, solution, jac, workers, time.perf_counter() - started)
 
 
+def step_kind(problem: ShootingProblem, unknowns: int) -> str:
+    """The trust-region steps of a least-squares stage, "exact" or "lsmr" (EXACT_STEP_BUDGET)."""
+    return "exact" if problem.data_rows() * unknowns**2 <= EXACT_STEP_BUDGET else "lsmr"
+
+
+def trust_region_steps(
+    problem: ShootingProblem, unknowns: int, jacobian: Callable[[np.ndarray], np.ndarray]
+) -> dict[str, Any]:
+    """least_squares' arguments for the steps step_kind chooses (LSMR takes the Jacobian sparse)."""
+    if step_kind(problem, unknowns) == "exact":
+        return {"tr_solver": "exact", "jac": jacobian}
+    return {"tr_solver": "lsmr", "jac": lambda z: csr_matrix(jacobian(z))}
+
+
 def _local_fit(
     runner: Runner, z0: np.ndarray, low: np.ndarray, high: np.ndarray, max_evaluations: int
 ) -> Any:
@@ -193,12 +217,11 @@ def _local_fit(
     return least_squares(
         runner.residuals,
         z0,
-        jac=runner.jacobian,
         bounds=(low, high),
         method="trf",
-        tr_solver="exact",
         x_scale=1.0,
         max_nfev=max_evaluations,
+        **trust_region_steps(runner.problem, z0.size, runner.jacobian),
     )
 
 
@@ -271,11 +294,10 @@ def _fit_states(runner: Runner, z0: np.ndarray, max_evaluations: int) -> np.ndar
     solution = least_squares(
         fun,
         z0[moving],
-        jac=jac,
         method="trf",
-        tr_solver="exact",
         ftol=STATE_STAGE_FTOL,
         max_nfev=min(max_evaluations, STATE_STAGE_EVALUATIONS),
+        **trust_region_steps(problem, moving.size, jac),
     )
     return with_states(solution.x)
 
@@ -328,6 +350,7 @@ def _result(
         segment_seconds=problem.segment_samples / problem.data.sample_rate,
         wall_time=wall,
         workers=workers,
+        steps=step_kind(problem, solution.x.size),
         config=problem.config_for(values),
         states=states,
         model=model,
