@@ -183,8 +183,8 @@ def fit(
         theta, low[: theta.size] + 1e-9 * np.abs(low[: theta.size]) + 1e-12, high[: theta.size] - 1e-9
     )
     z0 = np.concatenate([theta, problem.pack(start, problem.initial_states(start))[len(parameters) :]])
-    runner = Runner(problem, workers)
     with threadpool_limits(limits=BLAS_THREADS, user_api="blas"):
+        runner = Runner(problem, workers)
         try:
             starts = _scan(runner, z0, low, high) if problem.slips else [z0]
             solutions = [_local_fit(runner, z, low, high, max_evaluations) for z in starts]
@@ -195,16 +195,16 @@ def fit(
         return _result(problem, parameters, start, solution, jac, workers, time.perf_counter() - started)
 
 
-def step_kind(problem: ShootingProblem, unknowns: int) -> str:
-    """The trust-region steps of a least-squares stage, "exact" or "lsmr" (EXACT_STEP_BUDGET)."""
-    return "exact" if problem.data_rows() * unknowns**2 <= EXACT_STEP_BUDGET else "lsmr"
+def step_kind(rows: int, unknowns: int) -> str:
+    """The trust-region steps of a stage with these data rows and unknowns, "exact" or "lsmr"."""
+    return "exact" if rows * unknowns**2 <= EXACT_STEP_BUDGET else "lsmr"
 
 
 def trust_region_steps(
     problem: ShootingProblem, unknowns: int, jacobian: Callable[[np.ndarray], np.ndarray]
 ) -> dict[str, Any]:
     """least_squares' arguments for the steps step_kind chooses (LSMR takes the Jacobian sparse)."""
-    if step_kind(problem, unknowns) == "exact":
+    if step_kind(problem.data_rows(), unknowns) == "exact":
         return {"tr_solver": "exact", "jac": jacobian}
     return {"tr_solver": "lsmr", "jac": lambda z: csr_matrix(jacobian(z))}
 
@@ -350,7 +350,7 @@ def _result(
         segment_seconds=problem.segment_samples / problem.data.sample_rate,
         wall_time=wall,
         workers=workers,
-        steps=step_kind(problem, solution.x.size),
+        steps=step_kind(problem.data_rows(), solution.x.size),
         config=problem.config_for(values),
         states=states,
         model=model,
