@@ -59,7 +59,6 @@ JUMP = 0.5
 #: Measured with the errors from SVDs (fit/uncertainty.py): test_fit's μ-only and x-and-μ records
 #: of case 4 (seeds 1, 2) give the same estimates, errors and verdicts to 5 digits with steps of
 #: up to 16 samples and one iteration, and bench_fit.py is 5–8 % faster; kept for the principle.
-#: (Both were first chosen when rounding in the old JᵀJ elimination decided f0's verdict.)
 FIT_INTEGRATION: dict[str, int] = {"max_step_samples": 1, "min_newton_iterations": 2}
 #: Residual given to a sample whose run failed (the step size collapsed): a bad step, not a crash.
 FAILED = 1e3

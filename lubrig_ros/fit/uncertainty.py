@@ -9,10 +9,10 @@
   error exceeds MAX_RELATIVE_ERROR, when its correlation with another free parameter exceeds
   MAX_CORRELATION in magnitude (both from the covariance above), when the segments' start states
   absorb it (its information with them eliminated below MIN_RETAINED of its information from the
-  data rows alone), or when it takes part in a near-null
-  direction of the parameters' information with the continuity rows weighted COVARIANCE_WEIGHT,
-  the penalty's limit (eigenvalue of the correlation-scaled information below MIN_EIGENVALUE: a
-  combination the data cannot see, such as A·G and A·η_ref, which are all μ depends on).
+  data rows alone), or when it takes part in a near-null direction of the parameters' information
+  with the continuity rows weighted COVARIANCE_WEIGHT, the penalty's limit (eigenvalue of the
+  correlation-scaled information below MIN_EIGENVALUE: a combination the data cannot see, such as
+  A·G and A·η_ref, which are all μ depends on).
 
 Both come from singular value decompositions of the Jacobian, never from JᵀJ: the parameters'
 information with the states eliminated is the small difference of large terms when the continuity
