@@ -16,6 +16,7 @@ The rules are ROS-free (app/processes/discovery.py: `rig_occupants`, `extra_publ
 - `reads_source` / `await_source`: whether a sample of the declared band source reaches a band
   reader (the reader's half of a match); hold a wall-clock loop until it does.
 - `await_subscriber`: hold a wall-clock loop until a named node has subscribed and reported.
+- `report_callers`: name the client node of every request a service receives.
 """
 
 from __future__ import annotations
@@ -33,8 +34,10 @@ from rclpy.qos import QoSCompatibility, ReliabilityPolicy, qos_check_compatible
 from ..app.interface.diagnostics import Status
 from ..app.processes.discovery import (
     GRAPH_SETTLE_S,
+    CallerQueue,
     Endpoint,
     band_source_problem,
+    client_name,
     extra_publishers,
     fully_qualified,
 )
@@ -46,6 +49,8 @@ from .interfaces import message_type
 EXIT_NAMESPACE_TAKEN = 2
 #: s between looks at the graph while the guard waits for discovery to settle.
 GUARD_PERIOD_S = 0.1
+#: s between looks at the graph while a service request's client is not named yet.
+CALLER_PERIOD_S = 0.05
 
 
 def graph_publishers(node: Node, topics: Iterable[str]) -> dict[str, list[Endpoint]]:
@@ -276,3 +281,57 @@ def await_subscriber(
         )
     log.info(f"realtime: {prefix}* subscribed; the loop starts")
     return True
+
+
+class CallerReports:
+    """Name the client of every request `service` receives: report("/ns/node (request N)").
+
+    rclpy hands a service callback the request only; the middleware knows the client's GID.
+    Service introspection (metadata only: no request or response contents) publishes it on
+    ``<service>/_service_event`` (what ``ros2 service echo`` reads); this subscribes to that
+    topic and looks the GID up in the ROS graph: the client's request writer
+    (``rq<service>Request``) or reply reader (``rr<service>Reply``), whichever the rmw puts in
+    the request header, belongs to the client's node (app/processes/discovery.py: `client_name`).
+    The report comes just after the callback (the event travels through DDS), or, while the graph
+    does not know the client's node yet, up to CALLER_SETTLE_S later (`CallerQueue`).
+    """
+
+    def __init__(self, node: Node, service: Any, report: Callable[[str], None]) -> None:
+        from rclpy.qos import qos_profile_services_default
+        from rclpy.service_introspection import ServiceIntrospectionState
+        from service_msgs.msg import ServiceEventInfo
+
+        self._node, self._report, self._name = node, report, service.service_name
+        self._received = ServiceEventInfo.REQUEST_RECEIVED
+        self._queue = CallerQueue()
+        self._timer: Any = None
+        service.configure_introspection(
+            node.get_clock(), qos_profile_services_default, ServiceIntrospectionState.METADATA
+        )
+        events = f"{self._name}/_service_event"
+        self.subscription = node.create_subscription(
+            service.srv_type.Event, events, self._on_event, qos_profile_services_default
+        )
+
+    def _on_event(self, event: Any) -> None:
+        if event.info.event_type == self._received:
+            self._queue.add(bytes(event.info.client_gid), event.info.sequence_number, time.monotonic())
+            self._drain()
+
+    def _client(self, gid: bytes) -> str | None:
+        infos = [
+            *self._node.get_publishers_info_by_topic(f"rq{self._name}Request", no_mangle=True),
+            *self._node.get_subscriptions_info_by_topic(f"rr{self._name}Reply", no_mangle=True),
+        ]
+        return client_name(((bytes(i.endpoint_gid), i.node_namespace, i.node_name) for i in infos), gid)
+
+    def _drain(self) -> None:
+        for line in self._queue.ready(self._client, time.monotonic()):
+            self._report(line)
+        if not self._queue:
+            if self._timer is not None:
+                self._timer.cancel()
+        elif self._timer is None:
+            self._timer = steady_timer(self._node, CALLER_PERIOD_S, self._drain)
+        elif self._timer.is_canceled():
+            self._timer.reset()

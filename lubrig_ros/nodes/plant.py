@@ -70,7 +70,7 @@ from ..app.plant.session import (
 from ..core.params import ParameterError
 from . import common, graph, scheduling
 from .graph import NamespaceGuard, await_source, await_subscriber, band_source_status, delivers_to
-from .interfaces import create_service, create_subscription, report_callers
+from .interfaces import create_service, create_subscription
 from .plant_outputs import PlantOutputs
 
 HEARTBEAT_S = 0.2  # sim: flow_progress (and /clock) republished at 5 Hz
@@ -180,10 +180,11 @@ class Plant(Node):
         self._heard_awaited = False  # wall clock: the awaited subscriber's flow_progress arrived
         if self.wall_clock and self.wait_for_subscriber:
             create_subscription(self, "flow_progress", self._on_progress)
+        self._callers = []  # every reset/pause is logged with its caller; rclpy does not tell the callback
         for name, callback in (("plant/reset", self._on_reset), ("plant/pause", self._on_pause)):
             service = create_service(self, name, callback)
-            # every reset/pause is logged with its caller; rclpy does not tell the callback
-            report_callers(self, service, functools.partial(self._log_caller, service.service_name))
+            log = functools.partial(self._log_caller, service.service_name)
+            self._callers.append(graph.CallerReports(self, service, log))
         # steady clock, as the heartbeat: with use_sim_time the node clock stands until /clock moves
         common.steady_timer(self, values["diagnostics_period"], self._publish_diagnostics)
         self._stop = threading.Event()

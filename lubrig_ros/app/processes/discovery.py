@@ -14,13 +14,15 @@ A user's own FASTDDS_DEFAULT_PROFILES_FILE is kept (their transport choice wins,
 `isolation` says so).
 
 Who else is on the graph (the rules, without ROS): which nodes hold a rig's namespace
-(`rig_occupants`, `extra_publishers`) and whether band input has a publisher too many
-(`band_source_problem`); nodes/graph.py and cli/rig_ros.py ask rclpy for the graph.
+(`rig_occupants`, `extra_publishers`), whether band input has a publisher too many
+(`band_source_problem`) and which node called a service (`client_name`, `CallerQueue`);
+nodes/graph.py and cli/rig_ros.py ask rclpy for the graph.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -89,8 +91,14 @@ UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
 #: 0.5 s (config/fastdds_localhost.xml; peers were seen 0.09-0.53 s after they were ready), so
 #: three announcement periods.
 GRAPH_SETTLE_S = 1.5
+#: s a service request's client may stay unnamed in the graph before it is reported as unknown.
+#: rmw learns an endpoint's node from its participant's announcement of its entities, which can
+#: come after the endpoint itself: beside CPU hogs a request from a client made just before it
+#: arrived while the client's node was still _NODE_NAME_UNKNOWN_.
+CALLER_SETTLE_S = GRAPH_SETTLE_S
 
 Endpoint = tuple[str, str]  # (node namespace, node name)
+ClientEndpoint = tuple[bytes, str, str]  # (endpoint GID, node namespace, node name)
 
 
 def fully_qualified(namespace: str, name: str) -> str:
@@ -172,3 +180,55 @@ def band_source_problem(
             "more than one drives the band (band_source names the one expected)"
         )
     return None
+
+
+def client_name(endpoints: Iterable[ClientEndpoint], gid: bytes) -> str | None:
+    """Who owns the service client endpoint `gid`; None while the graph cannot tell yet.
+
+    `endpoints`: the service's client endpoints (request writers, reply readers). The endpoint
+    itself names its node; failing that, another endpoint of its participant (the GID's first 12
+    bytes: the process) names the process. An endpoint whose node is not discovered yet
+    (UNKNOWN_NODE) names nobody.
+    """
+    listed = list(endpoints)
+    for own, namespace, name in listed:
+        if own[: len(gid)] == gid:
+            return None if name == UNKNOWN_NODE else fully_qualified(namespace, name)
+    for own, namespace, name in listed:
+        if own[:12] == gid[:12] and name != UNKNOWN_NODE:
+            return f"a client in the process of {fully_qualified(namespace, name)}"
+    return None
+
+
+class CallerQueue:
+    """Service requests whose client is to be named, reported in the order they came.
+
+    A request whose client the graph cannot name yet waits, at most `settle` s from its arrival,
+    and then is reported as unknown; the requests after it wait behind it, so reports keep the
+    order of the requests.
+    """
+
+    def __init__(self, settle: float = CALLER_SETTLE_S) -> None:
+        self.settle = settle
+        self._pending: deque[tuple[bytes, int, float]] = deque()
+
+    def __len__(self) -> int:
+        return len(self._pending)
+
+    def add(self, gid: bytes, sequence: int, now: float) -> None:
+        """Request `sequence` from client endpoint `gid` arrived at `now` (s, a monotonic clock)."""
+        self._pending.append((gid, sequence, now + self.settle))
+
+    def ready(self, lookup: Callable[[bytes], str | None], now: float) -> list[str]:
+        """The reports due at `now`, oldest first: "<client> (request N)"; `lookup` is client_name's."""
+        reports = []
+        while self._pending:
+            gid, sequence, deadline = self._pending[0]
+            who = lookup(gid)
+            if who is None:
+                if now < deadline:
+                    break
+                who = f"an unknown client (GID {gid.hex()}, not in the ROS graph after {self.settle:g} s)"
+            self._pending.popleft()
+            reports.append(f"{who} (request {sequence})")
+        return reports
