@@ -16,7 +16,7 @@ The rules are ROS-free (app/processes/discovery.py: `rig_occupants`, `extra_publ
 - `reads_source` / `await_source`: whether a sample of the declared band source reaches a band
   reader (the reader's half of a match); hold a wall-clock loop until it does.
 - `await_subscriber`: hold a wall-clock loop until a named node has subscribed and reported.
-- `report_callers`: name the client node of every request a service receives.
+- `CallerReports`: name the client node of every request a service receives.
 """
 
 from __future__ import annotations
