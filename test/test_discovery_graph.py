@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from lubrig_ros.app.processes.discovery import (
     UNKNOWN_NODE,
     CallerQueue,
@@ -60,45 +62,60 @@ def _gid(participant: bytes, entity: int) -> bytes:
     return participant + entity.to_bytes(4, "big")
 
 
-def test_a_client_is_named_by_its_endpoint_else_by_its_process_never_while_its_node_is_unknown():
+def test_a_client_is_named_by_its_endpoint_its_process_only_when_waiting_is_over():
     endpoints = [
         (_gid(OTHER, 3), "/", "viewer"),
         (_gid(PROBE, 7), "/rig2", "probe"),
         (_gid(PROBE, 9), UNKNOWN_NODE, UNKNOWN_NODE),
     ]
-    assert client_name(endpoints, _gid(PROBE, 7)) == "/rig2/probe"
-    assert client_name(endpoints, _gid(OTHER, 3)) == "/viewer"
-    # the endpoint itself is there but its node is not discovered yet: nobody, not its process
-    assert client_name(endpoints, _gid(PROBE, 9)) is None
-    # an endpoint not listed (GID of an entity the rmw does not list): its process names it
-    assert client_name(endpoints, _gid(PROBE, 11)) == "a client in the process of /rig2/probe"
-    assert client_name(endpoints[2:], _gid(PROBE, 11)) is None
-    assert client_name([], _gid(PROBE, 7)) is None
+    for final in (False, True):
+        assert client_name(endpoints, _gid(PROBE, 7), final) == "/rig2/probe"
+        assert client_name(endpoints, _gid(OTHER, 3), final) == "/viewer"
+        assert client_name([], _gid(PROBE, 7), final) is None
+        assert client_name(endpoints[2:], _gid(PROBE, 11), final) is None
+    # the endpoint is there but its node is not discovered yet, or the endpoint is not listed: the
+    # process's other endpoint (maybe the client's own reply reader) names it only in the end
+    for gid in (_gid(PROBE, 9), _gid(PROBE, 11)):
+        assert client_name(endpoints, gid) is None
+        assert client_name(endpoints, gid, final=True) == "a client in the process of /rig2/probe"
     # a longer listed GID (zero padded storage) matches on the request header's bytes
     assert client_name([(_gid(PROBE, 7) + bytes(8), "/", "probe")], _gid(PROBE, 7)) == "/probe"
 
 
-def test_callers_wait_for_the_graph_in_order_at_most_the_settle_then_are_reported_unknown():
+def test_callers_are_named_as_soon_as_known_reported_in_order_unknown_after_the_settle():
     graph: list[tuple[bytes, str, str]] = [(_gid(PROBE, 9), UNKNOWN_NODE, UNKNOWN_NODE)]
 
-    def lookup(gid: bytes) -> str | None:
-        return client_name(graph, gid)
+    def lookup(gid: bytes, final: bool) -> str | None:
+        return client_name(graph, gid, final)
 
     queue = CallerQueue(settle=1.5)
     queue.add(_gid(PROBE, 9), 1, now=10.0)
-    queue.add(_gid(OTHER, 3), 1, now=10.1)
     graph.append((_gid(OTHER, 3), "/", "viewer"))
-    # the first request's node is unknown: it waits, and the second (named) waits behind it
+    queue.add(_gid(OTHER, 3), 1, now=10.1)
+    # the first request's node is unknown: it waits, and the second's report waits behind it, its
+    # client named already: a short-lived caller may leave the graph before the first is known
     assert queue.ready(lookup, now=10.2) == [] and len(queue) == 2
+    del graph[1]
     graph[0] = (_gid(PROBE, 9), "/rig2", "probe")
     assert queue.ready(lookup, now=10.3) == ["/rig2/probe (request 1)", "/viewer (request 1)"]
     assert len(queue) == 0 and queue.ready(lookup, now=10.4) == []
-    # a client never named (no endpoint of its process listed): reported unknown once the settle
-    # is over, with its GID, not before
-    stranger = _gid(bytes(range(50, 62)), 13)
-    queue.add(stranger, 2, now=20.0)
+    # never named by its endpoint: its process names it once the settle is over, not before
+    graph.append((_gid(OTHER, 4), UNKNOWN_NODE, UNKNOWN_NODE))
+    queue.add(_gid(OTHER, 4), 2, now=20.0)
+    graph.append((_gid(OTHER, 5), "/", "viewer"))
     assert queue.ready(lookup, now=21.49) == []
-    assert queue.ready(lookup, now=21.5) == [
-        f"an unknown client (GID {stranger.hex()}, not in the ROS graph after 1.5 s) (request 2)"
+    assert queue.ready(lookup, now=21.5) == ["a client in the process of /viewer (request 2)"]
+    # nothing of its process in the graph: unknown, with its GID
+    stranger = _gid(bytes(range(50, 62)), 13)
+    queue.add(stranger, 3, now=30.0)
+    assert queue.ready(lookup, now=31.0) == []
+    unknown = f"an unknown client (GID {stranger.hex()}, of no node the ROS graph knows) (request 3)"
+    assert queue.ready(lookup, now=31.5) == [unknown]
+    # the node stops: every waiting request reported at once, named if the graph can tell
+    queue.add(stranger, 4, now=40.0)
+    queue.add(_gid(PROBE, 9), 5, now=40.0)
+    assert queue.ready(lookup, now=math.inf) == [
+        unknown.replace("request 3", "request 4"),
+        "/rig2/probe (request 5)",
     ]
     assert len(queue) == 0

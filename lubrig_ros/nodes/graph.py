@@ -21,6 +21,7 @@ The rules are ROS-free (app/processes/discovery.py: `rig_occupants`, `extra_publ
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import threading
@@ -318,12 +319,13 @@ class CallerReports:
             self._queue.add(bytes(event.info.client_gid), event.info.sequence_number, time.monotonic())
             self._drain()
 
-    def _client(self, gid: bytes) -> str | None:
+    def _client(self, gid: bytes, final: bool) -> str | None:
         infos = [
             *self._node.get_publishers_info_by_topic(f"rq{self._name}Request", no_mangle=True),
             *self._node.get_subscriptions_info_by_topic(f"rr{self._name}Reply", no_mangle=True),
         ]
-        return client_name(((bytes(i.endpoint_gid), i.node_namespace, i.node_name) for i in infos), gid)
+        endpoints = ((bytes(i.endpoint_gid), i.node_namespace, i.node_name) for i in infos)
+        return client_name(endpoints, gid, final)
 
     def _drain(self) -> None:
         for line in self._queue.ready(self._client, time.monotonic()):
@@ -335,3 +337,15 @@ class CallerReports:
             self._timer = steady_timer(self._node, CALLER_PERIOD_S, self._drain)
         elif self._timer.is_canceled():
             self._timer.reset()
+
+    def flush(self) -> None:
+        """Report every request still waiting for its client's name (the node stops)."""
+
+        def client(gid: bytes, final: bool) -> str | None:
+            try:
+                return self._client(gid, final)
+            except RuntimeError:  # the context is shut down: no graph to ask
+                return None
+
+        for line in self._queue.ready(client, math.inf):
+            self._report(line)

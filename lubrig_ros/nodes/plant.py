@@ -469,6 +469,8 @@ class Plant(Node):
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=1.0)
+        for callers in self._callers:
+            callers.flush()
         session = self.session
         if self.wall_clock and not session.held_real_time:
             self.exit_status = self.exit_status or EXIT_REAL_TIME_NOT_HELD

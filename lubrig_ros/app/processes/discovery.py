@@ -182,53 +182,69 @@ def band_source_problem(
     return None
 
 
-def client_name(endpoints: Iterable[ClientEndpoint], gid: bytes) -> str | None:
+def client_name(endpoints: Iterable[ClientEndpoint], gid: bytes, final: bool = False) -> str | None:
     """Who owns the service client endpoint `gid`; None while the graph cannot tell yet.
 
     `endpoints`: the service's client endpoints (request writers, reply readers). The endpoint
-    itself names its node; failing that, another endpoint of its participant (the GID's first 12
-    bytes: the process) names the process. An endpoint whose node is not discovered yet
-    (UNKNOWN_NODE) names nobody.
+    itself names its node, once the node is discovered (not UNKNOWN_NODE). Only when waiting is
+    over (`final`) does another endpoint of its participant (the GID's first 12 bytes: the process)
+    name the process instead: before that, it may be the client's own other endpoint, discovered
+    before the one asked for.
     """
     listed = list(endpoints)
     for own, namespace, name in listed:
-        if own[: len(gid)] == gid:
-            return None if name == UNKNOWN_NODE else fully_qualified(namespace, name)
-    for own, namespace, name in listed:
-        if own[:12] == gid[:12] and name != UNKNOWN_NODE:
-            return f"a client in the process of {fully_qualified(namespace, name)}"
+        if own[: len(gid)] == gid and name != UNKNOWN_NODE:
+            return fully_qualified(namespace, name)
+    if final:
+        for own, namespace, name in listed:
+            if own[:12] == gid[:12] and name != UNKNOWN_NODE:
+                return f"a client in the process of {fully_qualified(namespace, name)}"
     return None
+
+
+@dataclass
+class _Request:
+    gid: bytes
+    sequence: int
+    deadline: float
+    client: str | None = None
 
 
 class CallerQueue:
     """Service requests whose client is to be named, reported in the order they came.
 
-    A request whose client the graph cannot name yet waits, at most `settle` s from its arrival,
-    and then is reported as unknown; the requests after it wait behind it, so reports keep the
-    order of the requests.
+    Every pending request's client is looked up at each `ready` until found (a short-lived caller
+    leaves the graph soon after its reply). A request whose client the graph cannot name yet is
+    held, at most `settle` s from its arrival, and then reported as unknown; the reports of the
+    requests after it are held behind it, so they keep the order of the requests.
     """
 
     def __init__(self, settle: float = CALLER_SETTLE_S) -> None:
         self.settle = settle
-        self._pending: deque[tuple[bytes, int, float]] = deque()
+        self._pending: deque[_Request] = deque()
 
     def __len__(self) -> int:
         return len(self._pending)
 
     def add(self, gid: bytes, sequence: int, now: float) -> None:
         """Request `sequence` from client endpoint `gid` arrived at `now` (s, a monotonic clock)."""
-        self._pending.append((gid, sequence, now + self.settle))
+        self._pending.append(_Request(gid, sequence, now + self.settle))
 
-    def ready(self, lookup: Callable[[bytes], str | None], now: float) -> list[str]:
-        """The reports due at `now`, oldest first: "<client> (request N)"; `lookup` is client_name's."""
+    def ready(self, lookup: Callable[[bytes, bool], str | None], now: float) -> list[str]:
+        """The reports due at `now`, oldest first: "<client> (request N)".
+
+        `lookup(gid, final)` is `client_name` on the graph of the moment; `now` = math.inf reports
+        every pending request (the node stops).
+        """
+        for request in self._pending:
+            if request.client is None:
+                request.client = lookup(request.gid, now >= request.deadline)
         reports = []
-        while self._pending:
-            gid, sequence, deadline = self._pending[0]
-            who = lookup(gid)
-            if who is None:
-                if now < deadline:
-                    break
-                who = f"an unknown client (GID {gid.hex()}, not in the ROS graph after {self.settle:g} s)"
-            self._pending.popleft()
-            reports.append(f"{who} (request {sequence})")
+        while self._pending and (self._pending[0].client is not None or now >= self._pending[0].deadline):
+            request = self._pending.popleft()
+            who = (
+                request.client
+                or f"an unknown client (GID {request.gid.hex()}, of no node the ROS graph knows)"
+            )
+            reports.append(f"{who} (request {request.sequence})")
         return reports
