@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 from lubrig_ros.app.processes.discovery import (
     UNKNOWN_NODE,
     CallerQueue,
@@ -84,38 +82,60 @@ def test_a_client_is_named_by_its_endpoint_its_process_only_when_waiting_is_over
 
 def test_callers_are_named_as_soon_as_known_reported_in_order_unknown_after_the_settle():
     graph: list[tuple[bytes, str, str]] = [(_gid(PROBE, 9), UNKNOWN_NODE, UNKNOWN_NODE)]
-
-    def lookup(gid: bytes, final: bool) -> str | None:
-        return client_name(graph, gid, final)
-
     queue = CallerQueue(settle=1.5)
     queue.add(_gid(PROBE, 9), 1, now=10.0)
     graph.append((_gid(OTHER, 3), "/", "viewer"))
     queue.add(_gid(OTHER, 3), 1, now=10.1)
     # the first request's node is unknown: it waits, and the second's report waits behind it, its
     # client named already: a short-lived caller may leave the graph before the first is known
-    assert queue.ready(lookup, now=10.2) == [] and len(queue) == 2
+    assert queue.ready(graph, now=10.2) == [] and len(queue) == 2
     del graph[1]
     graph[0] = (_gid(PROBE, 9), "/rig2", "probe")
-    assert queue.ready(lookup, now=10.3) == ["/rig2/probe (request 1)", "/viewer (request 1)"]
-    assert len(queue) == 0 and queue.ready(lookup, now=10.4) == []
+    assert queue.ready(graph, now=10.3) == ["/rig2/probe (request 1)", "/viewer (request 1)"]
+    assert len(queue) == 0 and queue.ready(graph, now=10.4) == []
     # never named by its endpoint: its process names it once the settle is over, not before
     graph.append((_gid(OTHER, 4), UNKNOWN_NODE, UNKNOWN_NODE))
     queue.add(_gid(OTHER, 4), 2, now=20.0)
     graph.append((_gid(OTHER, 5), "/", "viewer"))
-    assert queue.ready(lookup, now=21.49) == []
-    assert queue.ready(lookup, now=21.5) == ["a client in the process of /viewer (request 2)"]
+    assert queue.ready(graph, now=21.49) == []
+    assert queue.ready(graph, now=21.5) == ["a client in the process of /viewer (request 2)"]
     # nothing of its process in the graph: unknown, with its GID
     stranger = _gid(bytes(range(50, 62)), 13)
     queue.add(stranger, 3, now=30.0)
-    assert queue.ready(lookup, now=31.0) == []
+    assert queue.ready(graph, now=31.0) == []
     unknown = f"an unknown client (GID {stranger.hex()}, of no node the ROS graph knows) (request 3)"
-    assert queue.ready(lookup, now=31.5) == [unknown]
-    # the node stops: every waiting request reported at once, named if the graph can tell
+    assert queue.ready(graph, now=31.5) == [unknown]
+
+
+def test_a_stopping_node_reports_every_waiting_caller_at_once():
+    graph = [
+        (_gid(PROBE, 9), "/rig2", "probe"),
+        (_gid(OTHER, 4), UNKNOWN_NODE, UNKNOWN_NODE),
+        (_gid(OTHER, 5), "/", "viewer"),
+    ]
+    stranger = _gid(bytes(range(50, 62)), 13)
+    queue = CallerQueue(settle=1.5)
     queue.add(stranger, 4, now=40.0)
-    queue.add(_gid(PROBE, 9), 5, now=40.0)
-    assert queue.ready(lookup, now=math.inf) == [
-        unknown.replace("request 3", "request 4"),
-        "/rig2/probe (request 5)",
+    queue.add(_gid(OTHER, 4), 5, now=40.0)
+    queue.add(_gid(PROBE, 9), 6, now=40.0)
+    # the graph can still be asked: the final answers (the process fallback included)
+    assert queue.flush(graph) == [
+        f"an unknown client (GID {stranger.hex()}, of no node the ROS graph knows) (request 4)",
+        "a client in the process of /viewer (request 5)",
+        "/rig2/probe (request 6)",
+    ]
+    assert len(queue) == 0
+    # it cannot (the context is shut down): a client named already keeps its name, the others are
+    # said not to have been named, not to be unknown to the graph
+    queue.add(_gid(PROBE, 9), 7, now=50.0)
+    assert queue.ready(graph, now=50.0) == ["/rig2/probe (request 7)"]
+    queue.add(_gid(OTHER, 4), 8, now=50.0)
+    queue.add(_gid(PROBE, 9), 9, now=50.0)
+    queue.add(stranger, 10, now=50.0)
+    queue.ready(graph, now=50.1)  # request 9's client is named now, held behind request 8
+    assert queue.flush(None) == [
+        f"a client not named before the node stopped (GID {_gid(OTHER, 4).hex()}) (request 8)",
+        "/rig2/probe (request 9)",
+        f"a client not named before the node stopped (GID {stranger.hex()}) (request 10)",
     ]
     assert len(queue) == 0

@@ -21,7 +21,6 @@ The rules are ROS-free (app/processes/discovery.py: `rig_occupants`, `extra_publ
 
 from __future__ import annotations
 
-import math
 import os
 import signal
 import threading
@@ -34,11 +33,12 @@ from rclpy.qos import QoSCompatibility, ReliabilityPolicy, qos_check_compatible
 
 from ..app.interface.diagnostics import Status
 from ..app.processes.discovery import (
+    CALLER_SETTLE_S,
     GRAPH_SETTLE_S,
     CallerQueue,
+    ClientEndpoint,
     Endpoint,
     band_source_problem,
-    client_name,
     extra_publishers,
     fully_qualified,
 )
@@ -297,14 +297,17 @@ class CallerReports:
     does not know the client's node yet, up to CALLER_SETTLE_S later (`CallerQueue`).
     """
 
-    def __init__(self, node: Node, service: Any, report: Callable[[str], None]) -> None:
+    def __init__(
+        self, node: Node, service: Any, report: Callable[[str], None], settle: float = CALLER_SETTLE_S
+    ) -> None:
         from rclpy.qos import qos_profile_services_default
         from rclpy.service_introspection import ServiceIntrospectionState
         from service_msgs.msg import ServiceEventInfo
 
         self._node, self._report, self._name = node, report, service.service_name
         self._received = ServiceEventInfo.REQUEST_RECEIVED
-        self._queue = CallerQueue()
+        self.queue = CallerQueue(settle)  # the requests whose client is not named yet
+        self._lock = threading.Lock()  # flush() may come from another thread than the executor's
         self._timer: Any = None
         service.configure_introspection(
             node.get_clock(), qos_profile_services_default, ServiceIntrospectionState.METADATA
@@ -316,21 +319,25 @@ class CallerReports:
 
     def _on_event(self, event: Any) -> None:
         if event.info.event_type == self._received:
-            self._queue.add(bytes(event.info.client_gid), event.info.sequence_number, time.monotonic())
+            with self._lock:
+                self.queue.add(bytes(event.info.client_gid), event.info.sequence_number, time.monotonic())
             self._drain()
 
-    def _client(self, gid: bytes, final: bool) -> str | None:
+    def _endpoints(self) -> list[ClientEndpoint]:
+        """The service's client endpoints in the graph now (request writers, reply readers)."""
         infos = [
             *self._node.get_publishers_info_by_topic(f"rq{self._name}Request", no_mangle=True),
             *self._node.get_subscriptions_info_by_topic(f"rr{self._name}Reply", no_mangle=True),
         ]
-        endpoints = ((bytes(i.endpoint_gid), i.node_namespace, i.node_name) for i in infos)
-        return client_name(endpoints, gid, final)
+        return [(bytes(i.endpoint_gid), i.node_namespace, i.node_name) for i in infos]
 
     def _drain(self) -> None:
-        for line in self._queue.ready(self._client, time.monotonic()):
+        endpoints = self._endpoints()
+        with self._lock:
+            lines = self.queue.ready(endpoints, time.monotonic())
+        for line in lines:
             self._report(line)
-        if not self._queue:
+        if not self.queue:
             if self._timer is not None:
                 self._timer.cancel()
         elif self._timer is None:
@@ -340,12 +347,11 @@ class CallerReports:
 
     def flush(self) -> None:
         """Report every request still waiting for its client's name (the node stops)."""
-
-        def client(gid: bytes, final: bool) -> str | None:
-            try:
-                return self._client(gid, final)
-            except RuntimeError:  # the context is shut down: no graph to ask
-                return None
-
-        for line in self._queue.ready(client, math.inf):
+        try:
+            endpoints: list[ClientEndpoint] | None = self._endpoints()
+        except RuntimeError:  # the context is shut down (a stop by signal): no graph to ask
+            endpoints = None
+        with self._lock:
+            lines = self.queue.flush(endpoints)
+        for line in lines:
             self._report(line)

@@ -21,8 +21,9 @@ nodes/graph.py and cli/rig_ros.py ask rclpy for the graph.
 
 from __future__ import annotations
 
+import math
 from collections import deque
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -230,21 +231,34 @@ class CallerQueue:
         """Request `sequence` from client endpoint `gid` arrived at `now` (s, a monotonic clock)."""
         self._pending.append(_Request(gid, sequence, now + self.settle))
 
-    def ready(self, lookup: Callable[[bytes, bool], str | None], now: float) -> list[str]:
+    def ready(self, endpoints: Iterable[ClientEndpoint], now: float) -> list[str]:
         """The reports due at `now`, oldest first: "<client> (request N)".
 
-        `lookup(gid, final)` is `client_name` on the graph of the moment; `now` = math.inf reports
-        every pending request (the node stops).
+        `endpoints`: the service's client endpoints in the graph now (as for `client_name`).
         """
+        listed = list(endpoints)
         for request in self._pending:
             if request.client is None:
-                request.client = lookup(request.gid, now >= request.deadline)
+                request.client = client_name(listed, request.gid, now >= request.deadline)
         reports = []
         while self._pending and (self._pending[0].client is not None or now >= self._pending[0].deadline):
             request = self._pending.popleft()
-            who = (
-                request.client
-                or f"an unknown client (GID {request.gid.hex()}, of no node the ROS graph knows)"
-            )
-            reports.append(f"{who} (request {request.sequence})")
+            unknown = f"an unknown client (GID {request.gid.hex()}, of no node the ROS graph knows)"
+            reports.append(f"{request.client or unknown} (request {request.sequence})")
+        return reports
+
+    def flush(self, endpoints: Iterable[ClientEndpoint] | None) -> list[str]:
+        """Every pending request's report at once (the node stops).
+
+        `endpoints` as for `ready`; None: the graph cannot be asked any more (the context is shut
+        down), so a client not named by then is reported as such.
+        """
+        if endpoints is not None:
+            return self.ready(endpoints, math.inf)
+        reports = [
+            f"{r.client or f'a client not named before the node stopped (GID {r.gid.hex()})'}"
+            f" (request {r.sequence})"
+            for r in self._pending
+        ]
+        self._pending.clear()
         return reports
