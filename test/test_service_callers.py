@@ -15,10 +15,11 @@ The rules on plain graph data: test_discovery_graph.py.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 from lubrig_testkit.harness import Probe, wait_until
+from rclpy.qos import qos_profile_services_default
 from service_msgs.msg import ServiceEventInfo
 from std_srvs.srv import Trigger
 
@@ -51,12 +52,10 @@ def _serve(server: Probe, settle: float) -> tuple[list[tuple[float, str]], Calle
     return reports, callers
 
 
-def _fake_event(ros_domain: int, sequence: int) -> float:
-    """Publish a REQUEST_RECEIVED event from STRANGER; when it was sent (time.monotonic())."""
+def _fake_event(ros_domain: int, sequence: int, arrived: Callable[[], object]) -> float:
+    """Publish a REQUEST_RECEIVED event from STRANGER, the sender kept until `arrived()`; when sent."""
     sender = Probe(ros_domain, "sender")
     try:
-        from rclpy.qos import qos_profile_services_default
-
         publisher = sender.node.create_publisher(
             Trigger.Event, f"{SERVICE}/_service_event", qos_profile_services_default
         )
@@ -67,7 +66,7 @@ def _fake_event(ros_domain: int, sequence: int) -> float:
         event.info.sequence_number = sequence
         sent = time.monotonic()
         publisher.publish(event)
-        time.sleep(0.5)  # a reliable writer's retransmissions before its participant leaves
+        wait_until(arrived, 60, "the event at the server")  # (a reliable writer until delivered)
         return sent
     finally:
         sender.close()
@@ -88,7 +87,7 @@ def test_each_request_is_reported_with_its_callers_node_in_order(server: Probe, 
 
 def test_a_client_of_no_node_is_reported_unknown_once_the_wait_is_over(server: Probe, ros_domain: int):
     reports, callers = _serve(server, settle=0.5)
-    sent = _fake_event(ros_domain, 7)
+    sent = _fake_event(ros_domain, 7, lambda: reports or callers.queue)
     wait_until(lambda: reports, 60, "the report")
     at, line = reports[0]
     assert line == f"an unknown client (GID {STRANGER.hex()}, of no node the ROS graph knows) (request 7)"
@@ -97,16 +96,14 @@ def test_a_client_of_no_node_is_reported_unknown_once_the_wait_is_over(server: P
 
 
 def test_a_stopping_node_reports_what_still_waits(server: Probe, ros_domain: int):
-    reports, callers = _serve(server, settle=600.0)
-    _fake_event(ros_domain, 8)
-    wait_until(lambda: len(callers.queue) == 1, 60, "the request waiting")
+    reports, callers = _serve(server, settle=600.0)  # never reported while the test runs
+    _fake_event(ros_domain, 8, lambda: callers.queue)
     assert reports == []
     callers.flush()  # the graph can still be asked: its final answer
     assert [line for _, line in reports] == [
         f"an unknown client (GID {STRANGER.hex()}, of no node the ROS graph knows) (request 8)"
     ]
-    _fake_event(ros_domain, 9)
-    wait_until(lambda: len(callers.queue) == 1, 60, "the request waiting")
+    _fake_event(ros_domain, 9, lambda: callers.queue)
     server.close()  # the context shut down, as by SIGINT before Plant.close()
     callers.flush()
     assert [line for _, line in reports[1:]] == [
